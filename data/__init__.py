@@ -1,0 +1,1 @@
+"""Data shipped with rockscan: the default library spec and example photos."""

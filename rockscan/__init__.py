@@ -1,0 +1,54 @@
+"""rockscan: judge rock samples by their shape.
+
+photo -> segment -> outline and centroid -> polar radii -> information face ->
+eigenfaces against a library of Superformula shapes -> distance, MScore,
+cutoffs -> best rotation.
+
+The public API is listed in ``__all__``; submodules load on first use so that
+the command line starts fast.
+"""
+
+from __future__ import annotations
+
+import importlib
+from typing import Any
+
+__version__ = "0.1.0"
+
+_API = {
+    "RockscanError": "rockscan.errors",
+    "ParameterError": "rockscan.errors",
+    "ImageReadError": "rockscan.errors",
+    "NoRockFoundError": "rockscan.errors",
+    "LibraryError": "rockscan.errors",
+    "SpecError": "rockscan.errors",
+    "SuperformulaParams": "rockscan.superformula",
+    "superformula": "rockscan.superformula",
+    "polar_angles": "rockscan.polar",
+    "contour_radii": "rockscan.polar",
+    "symmetry_order": "rockscan.polar",
+    "rotate_radii": "rockscan.polar",
+    "FaceConfig": "rockscan.information",
+    "information_face": "rockscan.information",
+    "EigenBasis": "rockscan.eigen",
+    "ShapeSpec": "rockscan.library",
+    "Library": "rockscan.library",
+    "MatchConfig": "rockscan.match",
+    "Match": "rockscan.match",
+    "match_radii": "rockscan.match",
+}
+
+__all__ = [*sorted(_API), "__version__"]
+
+
+def __getattr__(name: str) -> Any:
+    module = _API.get(name)
+    if module is None:
+        raise AttributeError(f"module 'rockscan' has no attribute {name!r}")
+    value = getattr(importlib.import_module(module), name)
+    globals()[name] = value
+    return value
+
+
+def __dir__() -> list[str]:
+    return __all__

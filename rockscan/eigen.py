@@ -1,0 +1,168 @@
+"""Faces -> eigenface basis (Turk & Pentland 1991), as the paper uses it.
+
+The mean face ``Psi`` is removed from the L library faces; the eigenvectors of
+their covariance with non-zero eigenvalue (at most L - 1) span "face space".
+With fewer faces than pixels they come from the small L x L matrix of inner
+products, as Turk and Pentland do. A face ``Gamma`` projects to
+``omega_k = u_k^T (Gamma - Psi)``; its distance to library shape k is
+``eps_k = ||Omega - Omega_k||``, the paper's outWeight.
+
+With every non-zero eigenvector kept these distances equal the distances
+between the faces less their common part outside face space: eigenfaces buy
+speed and compactness, not different answers.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from rockscan.errors import ParameterError
+
+__all__ = ["EigenBasis"]
+
+
+@dataclass(frozen=True, eq=False)
+class EigenBasis:
+    """An eigenface basis fitted to a set of library faces; immutable.
+
+    Attributes
+    ----------
+    mean : (n_pixels,) ndarray of float
+        The mean face ``Psi``.
+    components : (n_components, n_pixels) ndarray of float
+        Orthonormal eigenfaces ``u_k`` as rows, by decreasing eigenvalue.
+    eigenvalues : (n_components,) ndarray of float
+        Their eigenvalues (sums of squares along each eigenface).
+    weights : (n_faces, n_components) ndarray of float
+        The library faces in face space, ``Omega_k``.
+    """
+
+    mean: NDArray[np.float64]
+    components: NDArray[np.float64]
+    eigenvalues: NDArray[np.float64]
+    weights: NDArray[np.float64]
+
+    def __post_init__(self) -> None:
+        for name in ("mean", "components", "eigenvalues", "weights"):
+            arr = np.asarray(getattr(self, name), dtype=np.float64)
+            arr.setflags(write=False)
+            object.__setattr__(self, name, arr)
+        n_pixels = self.mean.size
+        n_comp = self.eigenvalues.size
+        if self.mean.ndim != 1 or self.components.shape != (n_comp, n_pixels):
+            raise ParameterError("EigenBasis: components must be (n_components, n_pixels)")
+        if self.weights.ndim != 2 or self.weights.shape[1] != n_comp:
+            raise ParameterError("EigenBasis: weights must be (n_faces, n_components)")
+
+    @classmethod
+    def from_faces(
+        cls, faces: ArrayLike, *, rtol: float = 1e-10, n_components: int | None = None
+    ) -> EigenBasis:
+        """Fit the basis to library faces.
+
+        Parameters
+        ----------
+        faces : (n_faces, ...) array_like of float
+            One face per library shape; trailing axes are flattened.
+        rtol : float, optional
+            Eigenvalues below ``rtol`` times the largest count as zero.
+        n_components : int, optional
+            Keep at most this many eigenfaces. The default keeps all with a
+            non-zero eigenvalue, which changes no distance ranking.
+
+        Returns
+        -------
+        EigenBasis
+
+        Raises
+        ------
+        ParameterError
+            With fewer than two faces, or non-finite values.
+        """
+        faces = np.asarray(faces, dtype=np.float64)
+        if faces.ndim < 2 or faces.shape[0] < 2:
+            raise ParameterError("an eigenface basis needs at least two faces")
+        flat = faces.reshape(faces.shape[0], -1)
+        if not np.all(np.isfinite(flat)):
+            raise ParameterError("faces must be finite")
+        mean = flat.mean(axis=0)
+        centered = flat - mean
+        n_faces, n_pixels = centered.shape
+        if n_faces <= n_pixels:
+            # Turk & Pentland: eigenvectors of the small n_faces x n_faces matrix.
+            gram = centered @ centered.T
+            values, vectors = np.linalg.eigh(gram)
+            order = np.argsort(values)[::-1]
+            values, vectors = values[order], vectors[:, order]
+            keep = values > rtol * max(values[0], np.finfo(float).tiny)
+            values, vectors = values[keep], vectors[:, keep]
+            components = (vectors.T @ centered) / np.sqrt(values)[:, None]
+        else:
+            values, vectors = np.linalg.eigh(centered.T @ centered)
+            order = np.argsort(values)[::-1]
+            values, vectors = values[order], vectors[:, order]
+            keep = values > rtol * max(values[0], np.finfo(float).tiny)
+            values, components = values[keep], vectors[:, keep].T
+        if n_components is not None:
+            if int(n_components) < 1:
+                raise ParameterError("n_components must be at least 1")
+            values, components = values[: int(n_components)], components[: int(n_components)]
+        weights = centered @ components.T
+        return cls(mean=mean, components=components, eigenvalues=values, weights=weights)
+
+    @property
+    def n_components(self) -> int:
+        """Number of eigenfaces kept."""
+        return int(self.eigenvalues.size)
+
+    def project(self, faces: ArrayLike) -> NDArray[np.float64]:
+        """Coordinates ``Omega`` of faces in face space.
+
+        Parameters
+        ----------
+        faces : (..., *face_shape) array_like of float
+            Faces of the same pixel count as the library's.
+
+        Returns
+        -------
+        omega : (..., n_components) ndarray of float
+        """
+        faces = np.asarray(faces, dtype=np.float64)
+        flat = faces.reshape(-1, self.mean.size) if faces.size % self.mean.size == 0 else None
+        if flat is None or faces.size == 0:
+            raise ParameterError(f"faces must have {self.mean.size} pixels each")
+        batch = faces.shape[: faces.ndim - _trailing_dims(faces.shape, self.mean.size)]
+        return ((flat - self.mean) @ self.components.T).reshape(*batch, self.n_components)
+
+    def distances(self, faces: ArrayLike) -> NDArray[np.float64]:
+        """Distances ``eps_k`` of faces to every library face, in face space.
+
+        Returns
+        -------
+        eps : (..., n_faces) ndarray of float
+        """
+        omega = self.project(faces)
+        diff = omega[..., None, :] - self.weights
+        return np.sqrt(np.einsum("...kc,...kc->...k", diff, diff))
+
+    def residual(self, faces: ArrayLike) -> NDArray[np.float64]:
+        """Distance of faces from face space (Turk & Pentland's DFFS)."""
+        faces = np.asarray(faces, dtype=np.float64)
+        omega = self.project(faces)
+        flat = faces.reshape(*omega.shape[:-1], self.mean.size) - self.mean
+        inside = np.einsum("...c,...c->...", omega, omega)
+        total = np.einsum("...p,...p->...", flat, flat)
+        return np.sqrt(np.maximum(total - inside, 0.0))
+
+
+def _trailing_dims(shape: tuple[int, ...], n_pixels: int) -> int:
+    """How many trailing axes of ``shape`` make up one face of ``n_pixels``."""
+    size = 1
+    for count, extent in enumerate(reversed(shape), start=1):
+        size *= extent
+        if size == n_pixels:
+            return count
+    raise ParameterError(f"faces must have {n_pixels} pixels each")

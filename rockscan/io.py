@@ -1,0 +1,368 @@
+"""File readers and writers: library specs (TOML), library files (.npz), photos.
+
+This is the only module that touches the file system for the core pipeline;
+every stage takes and returns arrays.
+
+Library files are numpy ``.npz`` archives read with ``allow_pickle=False``:
+plain arrays plus a UTF-8 JSON ``metadata`` record that names the format and
+its version. Anything else is rejected with a one-line :class:`LibraryError`.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+import tomllib
+import zipfile
+import zlib
+from collections.abc import Sequence
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+import numpy as np
+from numpy.typing import NDArray
+
+from rockscan import __version__
+from rockscan.errors import LibraryError, ParameterError, SpecError
+from rockscan.superformula import SuperformulaParams
+
+if TYPE_CHECKING:
+    from rockscan._imageio import ImageData
+    from rockscan.information import FaceConfig
+    from rockscan.library import Library, ShapeSpec
+
+__all__ = [
+    "IMAGE_SUFFIXES",
+    "LIBRARY_FORMAT",
+    "LIBRARY_VERSION",
+    "default_library",
+    "default_spec_path",
+    "load_library",
+    "parse_spec",
+    "read_image",
+    "read_radii",
+    "read_spec",
+    "save_library",
+    "write_spec",
+]
+
+LIBRARY_FORMAT = "rockscan-library"
+LIBRARY_VERSION = 1
+#: Photo file endings rockscan reads (lower case).
+IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".tif", ".tiff", ".bmp")
+
+_ARRAYS = ("radii", "interest", "symmetry", "mean", "components", "eigenvalues", "weights")
+_SHAPE_KEYS = {"name", "interest", "images", *SuperformulaParams.names()}
+
+
+# ---------------------------------------------------------------- specs
+
+
+def read_spec(path: str | os.PathLike[str]) -> list[ShapeSpec]:
+    """Read a library spec (TOML, ``[[shape]]`` tables; see the interface).
+
+    Parameters
+    ----------
+    path : path-like
+
+    Returns
+    -------
+    shapes : list of ShapeSpec
+        Example image paths are made absolute, relative to the spec's folder.
+
+    Raises
+    ------
+    SpecError
+        On unreadable files, TOML errors, unknown keys or impossible shapes.
+    """
+    path = Path(path)
+    try:
+        text = path.read_text(encoding="utf-8")
+    except FileNotFoundError:
+        raise SpecError(f"{path}: spec file not found") from None
+    except (OSError, UnicodeDecodeError) as exc:
+        raise SpecError(f"{path}: cannot read spec ({exc})") from None
+    try:
+        data = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        raise SpecError(f"{path}: not valid TOML ({exc})") from None
+    return parse_spec(data, base=path.parent, source=str(path))
+
+
+def parse_spec(data: dict[str, object], *, base: Path | None = None, source: str = "spec") -> list[ShapeSpec]:
+    """Turn parsed TOML (``{"shape": [{...}, ...]}``) into shapes; see :func:`read_spec`."""
+    from rockscan.library import ShapeSpec
+
+    shapes = data.get("shape")
+    if not isinstance(shapes, list) or not shapes:
+        raise SpecError(f"{source}: a spec needs [[shape]] tables (see the README)")
+    out: list[ShapeSpec] = []
+    seen: set[str] = set()
+    for i, entry in enumerate(shapes, start=1):
+        if not isinstance(entry, dict):
+            raise SpecError(f"{source}: shape {i} is not a table")
+        name = entry.get("name")
+        where = f"{source}: shape {name!r}" if isinstance(name, str) else f"{source}: shape {i}"
+        unknown = set(entry) - _SHAPE_KEYS
+        if unknown:
+            raise SpecError(f"{where}: unknown keys {', '.join(sorted(unknown))}")
+        if isinstance(name, str) and name in seen:
+            raise SpecError(f"{where}: the name is used twice")
+        images = entry.get("images", ())
+        if not isinstance(images, (list, tuple)) or not all(isinstance(x, str) for x in images):
+            raise SpecError(f"{where}: images must be a list of file paths")
+        param_keys = set(SuperformulaParams.names()) & set(entry)
+        try:
+            params = None
+            if param_keys or not images:
+                missing = {"m1", "m2", "n1", "n2", "n3"} - set(entry)
+                if missing:
+                    raise SpecError(f"missing {', '.join(sorted(missing))}")
+                params = SuperformulaParams(**{k: entry[k] for k in SuperformulaParams.names() if k in entry})
+            paths = tuple(
+                str((base / p) if base is not None and not Path(p).is_absolute() else p) for p in images
+            )
+            shape = ShapeSpec(name=name, params=params, interest=entry.get("interest", 1.0), images=paths)
+        except (ParameterError, SpecError) as exc:
+            raise SpecError(f"{where}: {exc}") from None
+        seen.add(shape.name)
+        out.append(shape)
+    return out
+
+
+def write_spec(shapes: Sequence[ShapeSpec], path: str | os.PathLike[str] | None = None) -> str:
+    """Write shapes as a spec (TOML); return the text. ``path=None`` only returns it."""
+    lines: list[str] = []
+    for shape in shapes:
+        lines.append("[[shape]]")
+        lines.append(f'name = "{shape.name}"')
+        if shape.params is not None:
+            for key, value in shape.params.as_dict().items():
+                lines.append(f"{key} = {_toml_float(value)}")
+        if shape.images:
+            listed = ", ".join(json.dumps(p) for p in shape.images)
+            lines.append(f"images = [{listed}]")
+        if shape.interest != 1.0:
+            lines.append(f"interest = {_toml_float(shape.interest)}")
+        lines.append("")
+    text = "\n".join(lines)
+    if path is not None:
+        _atomic_write_bytes(Path(path), text.encode("utf-8"))
+    return text
+
+
+def _toml_float(value: float) -> str:
+    text = repr(float(value))
+    return text if math.isfinite(value) else ("inf" if value > 0 else "-inf")
+
+
+# ---------------------------------------------------------------- library files
+
+
+def save_library(library: Library, path: str | os.PathLike[str]) -> None:
+    """Write a library file (``.npz`` with JSON metadata; no pickle).
+
+    The file is written to a temporary name and renamed, so an interrupted save
+    never leaves a half-written library behind.
+    """
+    metadata = {
+        "format": LIBRARY_FORMAT,
+        "version": LIBRARY_VERSION,
+        "rockscan": __version__,
+        "names": list(library.names),
+        "params": [p.as_dict() if p is not None else None for p in library.params],
+        "face": library.face_config.to_dict(),
+    }
+    arrays = {
+        "metadata": np.frombuffer(json.dumps(metadata).encode("utf-8"), dtype=np.uint8),
+        "radii": library.radii,
+        "interest": library.interest,
+        "symmetry": library.symmetry,
+        "mean": library.basis.mean,
+        "components": library.basis.components,
+        "eigenvalues": library.basis.eigenvalues,
+        "weights": library.basis.weights,
+    }
+    path = Path(path)
+    tmp = path.with_name(f".{path.name}.tmp{os.getpid()}")
+    try:
+        with open(tmp, "wb") as fh:
+            np.savez(fh, **arrays)
+        os.replace(tmp, path)
+    except OSError as exc:
+        tmp.unlink(missing_ok=True)
+        raise LibraryError(f"{path}: cannot write library ({exc.strerror or exc})") from None
+
+
+def load_library(path: str | os.PathLike[str]) -> Library:
+    """Read a library file written by :func:`save_library`.
+
+    Raises
+    ------
+    LibraryError
+        With a one-line reason if the file is missing, truncated, corrupt,
+        not a rockscan library, of a newer format version, or inconsistent.
+    """
+    from rockscan.eigen import EigenBasis
+    from rockscan.information import FaceConfig
+    from rockscan.library import Library
+
+    path = Path(path)
+    if not path.exists():
+        raise LibraryError(f"{path}: library file not found")
+    if path.is_dir():
+        raise LibraryError(f"{path}: is a folder, not a library file")
+    try:
+        with np.load(path, allow_pickle=False) as archive:
+            if not isinstance(archive, np.lib.npyio.NpzFile):
+                raise LibraryError(
+                    f"{path}: not a rockscan library (a bare numpy array, not an .npz archive)"
+                )
+            missing = [k for k in ("metadata", *_ARRAYS) if k not in archive.files]
+            if missing:
+                raise LibraryError(f"{path}: not a rockscan library (missing {', '.join(missing)})")
+            raw = archive["metadata"]
+            arrays = {k: archive[k] for k in _ARRAYS}
+    except LibraryError:
+        raise
+    except (zipfile.BadZipFile, zlib.error, EOFError) as exc:
+        raise LibraryError(f"{path}: library file is truncated or corrupt ({exc})") from None
+    except (ValueError, OSError, AttributeError) as exc:
+        raise LibraryError(f"{path}: not a rockscan library file ({_first_line(exc)})") from None
+    if not isinstance(raw, np.ndarray) or raw.dtype != np.uint8 or raw.ndim != 1:
+        raise LibraryError(f"{path}: not a rockscan library (bad metadata record)")
+    try:
+        meta = json.loads(raw.tobytes().decode("utf-8"))
+    except (UnicodeDecodeError, json.JSONDecodeError):
+        raise LibraryError(f"{path}: library metadata is corrupt") from None
+    if not isinstance(meta, dict) or meta.get("format") != LIBRARY_FORMAT:
+        raise LibraryError(f"{path}: not a rockscan library (format is {meta.get('format')!r})")  # type: ignore[union-attr]
+    version = meta.get("version")
+    if not isinstance(version, int) or version < 1:
+        raise LibraryError(f"{path}: library metadata has no valid format version")
+    if version > LIBRARY_VERSION:
+        raise LibraryError(
+            f"{path}: library format version {version} is newer than this rockscan reads "
+            f"({LIBRARY_VERSION}); upgrade rockscan"
+        )
+    try:
+        params = [SuperformulaParams(**p) if p is not None else None for p in meta["params"]]
+        face = FaceConfig.from_dict(meta["face"])
+        basis = EigenBasis(
+            mean=arrays["mean"],
+            components=arrays["components"],
+            eigenvalues=arrays["eigenvalues"],
+            weights=arrays["weights"],
+        )
+        for name in ("mean", "components", "weights"):
+            if not np.all(np.isfinite(getattr(basis, name))):
+                raise LibraryError(f"library {name} holds non-finite values")
+        return Library(
+            names=tuple(meta["names"]),
+            radii=arrays["radii"],
+            params=tuple(params),
+            interest=arrays["interest"],
+            symmetry=arrays["symmetry"],
+            face_config=face,
+            basis=basis,
+        )
+    except (KeyError, TypeError, ValueError) as exc:
+        raise LibraryError(f"{path}: library file is inconsistent ({_first_line(exc)})") from None
+
+
+def default_spec_path() -> Path:
+    """Path of the built-in default library spec shipped with the package."""
+    from importlib.resources import files
+
+    return Path(str(files("rockscan._data") / "default_library.toml"))
+
+
+_DEFAULT_CACHE: dict[object, Library] = {}
+
+
+def default_library(face_config: FaceConfig | None = None) -> Library:
+    """The built-in default library, built from its spec once per process."""
+    from rockscan.information import FaceConfig
+    from rockscan.library import Library
+
+    config = face_config or FaceConfig()
+    key = (config.kind, config.grid, json.dumps(config.to_dict(), sort_keys=True))
+    if key not in _DEFAULT_CACHE:
+        _DEFAULT_CACHE[key] = Library.from_shapes(read_spec(default_spec_path()), face_config=config)
+    return _DEFAULT_CACHE[key]
+
+
+# ---------------------------------------------------------------- radii files
+
+
+def read_radii(path: str | os.PathLike[str]) -> NDArray[np.float64]:
+    """Read an outline given as radii: a text file of numbers (any whitespace or
+    commas), or a ``.npy`` array, sampled at equal angles from theta = 0.
+
+    Raises
+    ------
+    ParameterError
+        If the file cannot be read or holds no usable radii.
+    """
+    path = Path(path)
+    try:
+        if path.suffix.lower() == ".npy":
+            values = np.load(path, allow_pickle=False)
+        else:
+            text = path.read_text(encoding="utf-8").replace(",", " ")
+            values = np.array([float(tok) for tok in text.split()])
+    except FileNotFoundError:
+        raise ParameterError(f"{path}: radii file not found") from None
+    except (OSError, ValueError, UnicodeDecodeError) as exc:
+        raise ParameterError(f"{path}: cannot read radii ({_first_line(exc)})") from None
+    values = np.asarray(values, dtype=np.float64).ravel()
+    if values.size < 8 or not np.all(np.isfinite(values)) or np.any(values < 0) or values.max() <= 0:
+        raise ParameterError(f"{path}: radii must be at least 8 finite, non-negative numbers, not all zero")
+    return values
+
+
+# ---------------------------------------------------------------- photos
+
+
+def read_image(path: str | os.PathLike[str], *, max_side: int | None = None) -> ImageData:
+    """Read a photo: PNG, JPEG, TIFF or BMP; gray, RGB or RGBA; 8 or 16 bits.
+
+    Parameters
+    ----------
+    path : path-like
+    max_side : int, optional
+        For very large photos, decode at 1/2, 1/4 or 1/8 size (JPEG decodes
+        directly at that size) so that the longer side is close to this, and
+        keep memory bounded. The returned ``scale`` maps back to full pixels.
+
+    Returns
+    -------
+    ImageData
+        ``pixels`` as (rows, cols) or (rows, cols, 3|4) RGB(A), uint8 or uint16,
+        turned upright by the EXIF orientation tag.
+
+    Raises
+    ------
+    ImageReadError
+        If the file is missing, empty, truncated, not a supported image, or
+        unreadable.
+    """
+    from rockscan._imageio import read_image as _read
+
+    return _read(Path(path), max_side=max_side)
+
+
+def _first_line(exc: BaseException) -> str:
+    text = str(exc).strip().splitlines()
+    return text[0] if text else type(exc).__name__
+
+
+def _atomic_write_bytes(path: Path, data: bytes) -> None:
+    tmp = path.with_name(f".{path.name}.tmp{os.getpid()}")
+    try:
+        tmp.write_bytes(data)
+        os.replace(tmp, path)
+    except OSError as exc:
+        tmp.unlink(missing_ok=True)
+        raise ParameterError(f"{path}: cannot write ({exc.strerror or exc})") from None

@@ -1,0 +1,412 @@
+"""Face, basis -> match: distances, MScore, cutoffs and the rotation scan.
+
+For a sample with radii r and every library shape k this computes the paper's
+eigenspace distance ``eps_k`` (outWeight) at every rotation of the sample, keeps
+each shape's best rotation ``w_k = min_alpha eps_k(alpha)``, and reports
+
+* the nearest shape ``argmin_k w_k`` and its refined angle,
+* ``MScore = 1 - min(w) / mean(w)`` (paper-notes.md, note 9),
+* whether it passes the cutoffs: ``w_min <= distance_cutoff`` (the paper's theta)
+  and ``MScore > mscore_cutoff`` (the paper's gamma).
+
+Turning a sample shifts its face's sample term ``q`` along theta, so the scan
+correlates ``q`` with Fourier templates of the eigenfaces: all ``n_angles``
+rotations cost a few times one (see scripts/bench_core.py).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from rockscan.errors import ParameterError
+from rockscan.information import information_face, sample_term
+
+if TYPE_CHECKING:
+    from rockscan.library import Library
+
+#: What the distances ``w`` measure (see MatchConfig).
+METRICS = ("face", "eigenspace")
+
+__all__ = [
+    "DEFAULT_CUTOFFS",
+    "METRICS",
+    "Match",
+    "MatchConfig",
+    "ScanTemplates",
+    "match_radii",
+    "rotation_scores",
+]
+
+#: Default cutoffs (distance_cutoff, mscore_cutoff) per face kind, chosen from
+#: rendered in-library rocks and out-of-library distractors by
+#: scripts/calibrate_cutoffs.py (see the README, "Cutoffs").
+DEFAULT_CUTOFFS: dict[str, tuple[float, float]] = {
+    "information": (math.inf, 0.0),
+    "information-shape": (math.inf, 0.0),
+    "radii": (math.inf, 0.0),
+}
+
+
+@dataclass(frozen=True)
+class MatchConfig:
+    """Settings of the matcher.
+
+    Parameters
+    ----------
+    distance_cutoff : float or None
+        The paper's theta: the best shape must be within this eigenspace
+        distance. None takes the default for the library's face kind.
+    mscore_cutoff : float or None
+        The paper's gamma: MScore must exceed it. None takes the default.
+    scan : bool
+        Scan all rotations (default). False matches the sample as it stands,
+        as in the paper's Fig. 13.
+    refine : bool
+        Refine the best angle below the scan step by a parabola through the
+        three best rotations' squared distances.
+    metric : {"eigenspace", "face"}
+        What ``w`` measures. ``"eigenspace"`` is the paper's ``eps_k``, the
+        distance inside face space: what the library's shapes cannot express
+        (a real rock's small irregularities) is left out. ``"face"`` adds the
+        distance from face space (Turk & Pentland's second measure),
+        ``sqrt(eps_k**2 + dffs**2)``: the distance between whole faces.
+    angle_metric : {"face", "eigenspace"}
+        What the nearest shape's angle minimises. A turned sample leaves face
+        space, where ``eps`` alone can find spurious alignments; the whole-face
+        distance ``"face"`` measures the angle best (README, "Benchmarks").
+        The paper's exact method is ``metric="eigenspace", angle_metric="eigenspace"``.
+    """
+
+    distance_cutoff: float | None = None
+    mscore_cutoff: float | None = None
+    scan: bool = True
+    refine: bool = True
+    metric: str = "eigenspace"
+    angle_metric: str = "face"
+
+    def __post_init__(self) -> None:
+        _check_metric(self.metric)
+        _check_metric(self.angle_metric)
+        for name in ("distance_cutoff", "mscore_cutoff"):
+            value = getattr(self, name)
+            if value is not None and (not isinstance(value, (int, float)) or math.isnan(value)):
+                raise ParameterError(f"{name} must be a number or None, got {value!r}")
+
+    def cutoffs(self, kind: str) -> tuple[float, float]:
+        """The (distance, MScore) cutoffs in force for a face kind."""
+        theta, gamma = DEFAULT_CUTOFFS[kind]
+        return (
+            theta if self.distance_cutoff is None else float(self.distance_cutoff),
+            gamma if self.mscore_cutoff is None else float(self.mscore_cutoff),
+        )
+
+
+@dataclass(frozen=True)
+class Match:
+    """The result of matching one sample against a library.
+
+    Attributes
+    ----------
+    nearest : str
+        The closest library shape, whether or not it passes the cutoffs.
+    match : str or None
+        ``nearest`` if the sample passed the cutoffs, else None.
+    mscore : float
+        ``1 - min(w) / mean(w)``.
+    distance : float
+        Eigenspace distance to the nearest shape at its best rotation (outWeight).
+    angle_deg : float
+        Rotation of the sample from the nearest shape, in [0, 360), counter-clockwise.
+    interesting : bool
+        Whether the sample passed both cutoffs.
+    residual : float
+        Distance of the sample's face from face space at that rotation (DFFS).
+    symmetry : int
+        The nearest shape's order of rotational symmetry (0: circle); the angle
+        is defined modulo ``360/symmetry``.
+    names : tuple of str
+        Library shape names, in library order.
+    distances : (n_shapes,) ndarray of float
+        ``w_k`` for every library shape, each at its own best rotation.
+    angles_deg : (n_shapes,) ndarray of float
+        Each shape's best rotation.
+    """
+
+    nearest: str
+    match: str | None
+    mscore: float
+    distance: float
+    angle_deg: float
+    interesting: bool
+    residual: float
+    symmetry: int
+    names: tuple[str, ...] = field(repr=False)
+    distances: NDArray[np.float64] = field(repr=False)
+    angles_deg: NDArray[np.float64] = field(repr=False)
+
+    def to_dict(self) -> dict[str, object]:
+        """The interface's JSON keys (without path and centroid), plus extras."""
+        return {
+            "match": self.match,
+            "nearest": self.nearest,
+            "mscore": self.mscore,
+            "distance": self.distance,
+            "angle_deg": self.angle_deg,
+            "interesting": self.interesting,
+            "residual": self.residual,
+            "symmetry": self.symmetry,
+        }
+
+
+@dataclass(frozen=True, eq=False)
+class ScanTemplates:
+    """Fourier-domain templates that score every rotation of a sample at once.
+
+    With ``q_a`` the sample term turned back by ``a`` rays and ``W`` the
+    reference information, the face is ``Gamma_a = W * q_a``. Everything the
+    matcher needs is a circular cross-correlation of ``q`` (or ``q**2``) along
+    theta with a fixed template, done by FFT:
+
+    * ``(Gamma_a - Psi) . P(F_k - Psi)`` with ``W * P(F_k - Psi)``, one channel per
+      library shape (``P`` projects onto face space, where ``F_k - Psi`` lies);
+    * ``||Gamma_a - Psi||**2`` from ``W**2`` (against ``q**2``) and ``W * Psi``;
+    * ``||Omega(a)||**2`` from ``W * u_c``, one channel per eigenface (only for
+      the eigenspace metric).
+
+    Then ``eps_k(a)**2 = ||Omega(a)||**2 + ||Omega_k||**2 - 2 cross(a, k)`` and the
+    full face distance ``d_k(a)**2 = ||Gamma_a - Psi||**2 + ||Omega_k||**2 - 2 cross(a, k)``.
+    The channel count is linear in the library size, and so is the cost.
+    """
+
+    shape_spectra: NDArray[np.complex128]
+    shape_offsets: NDArray[np.float64]
+    eigen_spectra: NDArray[np.complex128]
+    eigen_offsets: NDArray[np.float64]
+    mean_spectrum: NDArray[np.complex128]
+    weight_sq_spectrum: NDArray[np.complex128]
+    mean_norm_sq: float
+    omega_norm_sq: NDArray[np.float64]
+    n_angles: int
+
+    @classmethod
+    def from_library(cls, library: Library) -> ScanTemplates:
+        """Precompute the templates of a library (polar grid only)."""
+        config = library.face_config
+        if config.grid != "polar":
+            raise ParameterError("Fourier scan templates need the polar grid")
+        basis = library.basis
+        shape = config.face_shape
+        w_map = library.weights_map
+        mean = basis.mean.reshape(shape)
+        in_span = (basis.weights @ basis.components).reshape(-1, *shape)
+        comps = basis.components.reshape(-1, *shape)
+
+        def spectra(stack: NDArray[np.float64]) -> NDArray[np.complex128]:
+            # (n_freq, n_sections, n_channels), conjugated: correlation, not convolution.
+            return np.ascontiguousarray(np.conj(np.fft.rfft(stack, axis=1)).transpose(1, 2, 0))
+
+        return cls(
+            shape_spectra=spectra(in_span * w_map),
+            shape_offsets=in_span.reshape(len(in_span), -1) @ basis.mean,
+            eigen_spectra=spectra(comps * w_map),
+            eigen_offsets=basis.components @ basis.mean,
+            mean_spectrum=spectra((w_map * mean)[None]),
+            weight_sq_spectrum=spectra((w_map**2)[None]),
+            mean_norm_sq=float(basis.mean @ basis.mean),
+            omega_norm_sq=np.einsum("kc,kc->k", basis.weights, basis.weights),
+            n_angles=config.n_angles,
+        )
+
+    def squared_distances(
+        self, q: NDArray[np.float64], metrics: tuple[str, ...] = ("eigenspace",)
+    ) -> dict[str, NDArray[np.float64]]:
+        """Squared distances for every rotation a and shape k.
+
+        Parameters
+        ----------
+        q : (n_angles, n_sections) ndarray of float
+            The sample term of the face.
+        metrics : tuple of {"eigenspace", "face"}
+            ``"eigenspace"``: ``eps_k(a)**2``, the paper's distance inside face
+            space; ``"face"``: ``d_k(a)**2``, the distance between whole faces.
+
+        Returns
+        -------
+        dist_sq : dict of str to (n_angles, n_shapes) ndarray of float
+            Row a is the sample turned back by a rays (``a * 360/n_angles`` deg).
+        """
+        spectrum = np.fft.rfft(q, axis=0)
+        cross = self._correlate(spectrum, self.shape_spectra) - self.shape_offsets
+        base = self.omega_norm_sq[None, :] - 2.0 * cross
+        out = {}
+        for metric in metrics:
+            if metric == "eigenspace":
+                omega = self._correlate(spectrum, self.eigen_spectra) - self.eigen_offsets
+                norm_sq = np.einsum("ac,ac->a", omega, omega)
+            else:
+                norm_sq = self.centered_norm_sq(q, spectrum)
+            out[metric] = np.maximum(norm_sq[:, None] + base, 0.0)
+        return out
+
+    def centered_norm_sq(
+        self, q: NDArray[np.float64], spectrum: NDArray[np.complex128] | None = None
+    ) -> NDArray[np.float64]:
+        """``||Gamma_a - Psi||**2`` for every rotation a."""
+        spectrum = np.fft.rfft(q, axis=0) if spectrum is None else spectrum
+        face_sq = self._correlate(np.fft.rfft(q * q, axis=0), self.weight_sq_spectrum)[:, 0]
+        with_mean = self._correlate(spectrum, self.mean_spectrum)[:, 0]
+        return face_sq - 2.0 * with_mean + self.mean_norm_sq
+
+    def _correlate(
+        self, spectrum: NDArray[np.complex128], templates: NDArray[np.complex128]
+    ) -> NDArray[np.float64]:
+        product = (spectrum[:, None, :] @ templates)[:, 0, :]
+        return np.fft.irfft(product, n=self.n_angles, axis=0)
+
+
+def rotation_scores(radii: ArrayLike, library: Library, *, metric: str = "eigenspace") -> NDArray[np.float64]:
+    """Distances of a sample to every library shape at every rotation.
+
+    Parameters
+    ----------
+    radii : (n_angles,) array_like of float
+        The sample's radii at :func:`rockscan.polar.polar_angles`, any scale.
+    library : Library
+    metric : {"eigenspace", "face"}
+        See :class:`MatchConfig`.
+
+    Returns
+    -------
+    dist : (n_angles, n_shapes) ndarray of float
+        Row a: the sample turned back by ``a * 360/n_angles`` degrees, i.e. the
+        distance to each shape turned by that angle (interface convention).
+    """
+    config = library.face_config
+    radii = _check_sample(radii, config.n_angles)
+    return _scan(radii, library, (_check_metric(metric),), scan=True)[metric]
+
+
+def _scan(
+    radii: NDArray[np.float64], library: Library, metrics: tuple[str, ...], *, scan: bool
+) -> dict[str, NDArray[np.float64]]:
+    """Distances (not squared) per metric, (n_rotations, n_shapes)."""
+    config = library.face_config
+    if not scan:
+        face = _face_at(radii, library, 0, None)
+        eps = library.basis.distances(face)[None, :]
+        residual = library.basis.residual(face)
+        return {m: eps if m == "eigenspace" else np.sqrt(eps**2 + residual**2) for m in metrics}
+    if config.grid == "polar":
+        squared = library.scan_templates.squared_distances(sample_term(radii, config), metrics)
+        return {m: np.sqrt(v) for m, v in squared.items()}
+    # The paper's Cartesian grid map: every rotation needs its own face.
+    turned = np.stack([np.roll(radii, -a) for a in range(config.n_angles)])
+    faces = information_face(turned, config)
+    eps = library.basis.distances(faces)
+    residual = library.basis.residual(faces)[:, None]
+    return {m: eps if m == "eigenspace" else np.sqrt(eps**2 + residual**2) for m in metrics}
+
+
+def match_radii(radii: ArrayLike, library: Library, config: MatchConfig | None = None) -> Match:
+    """Match a sample outline, given as radii, against a library.
+
+    Parameters
+    ----------
+    radii : (n_angles,) array_like of float
+        Radii about the sample's centroid at :func:`rockscan.polar.polar_angles`
+        (``n_angles`` of the library's face settings), any scale.
+    library : Library
+    config : MatchConfig, optional
+
+    Returns
+    -------
+    Match
+
+    Notes
+    -----
+    Each shape is scored at its own best rotation, so ``w`` and MScore do not
+    depend on how the sample lies. The nearest shape's angle is then taken
+    where ``angle_metric`` is least, refined below the scan step by a parabola
+    through the squared distances at that rotation and its two neighbours.
+    """
+    config = config or MatchConfig()
+    face_config = library.face_config
+    radii = _check_sample(radii, face_config.n_angles)
+    metrics = tuple(dict.fromkeys((config.metric, config.angle_metric)))
+    dist = _scan(radii, library, metrics, scan=config.scan)
+    chosen = dist[config.metric]
+    best_shift = np.argmin(chosen, axis=0)
+    w = chosen[best_shift, np.arange(chosen.shape[1])]
+    k = int(np.argmin(w))
+    step_deg = 360.0 / face_config.n_angles
+    angles = np.mod(best_shift * step_deg, 360.0) if config.scan else np.zeros(w.size)
+    angle_deg = 0.0
+    shift_k = int(best_shift[k])
+    if config.scan:
+        along = dist[config.angle_metric][:, k]
+        shift_k = int(np.argmin(along))
+        shift = float(shift_k) + (_parabola_offset(along**2, shift_k) if config.refine else 0.0)
+        angle_deg = float(np.mod(shift * step_deg, 360.0))
+        angles[k] = angle_deg
+    mean_w = float(w.mean())
+    mscore = 1.0 - float(w[k]) / mean_w if mean_w > 0 else 1.0
+    face = _face_at(radii, library, shift_k, None)
+    eps_best = float(library.basis.distances(face)[k])
+    residual = float(library.basis.residual(face))
+    distance_cutoff, mscore_cutoff = config.cutoffs(face_config.kind)
+    interesting = bool(w[k] <= distance_cutoff and mscore > mscore_cutoff)
+    return Match(
+        nearest=library.names[k],
+        match=library.names[k] if interesting else None,
+        mscore=mscore,
+        distance=eps_best,
+        angle_deg=angle_deg,
+        interesting=interesting,
+        residual=residual,
+        symmetry=int(library.symmetry[k]),
+        names=library.names,
+        distances=w,
+        angles_deg=angles,
+    )
+
+
+def _face_at(
+    radii: NDArray[np.float64], library: Library, shift: int, q: NDArray[np.float64] | None
+) -> NDArray[np.float64]:
+    """The sample's face turned back by ``shift`` rays (``q``: its polar sample term)."""
+    if q is None:
+        return information_face(np.roll(radii, -shift), library.face_config)
+    return library.weights_map * np.roll(q, -shift, axis=0)
+
+
+def _parabola_offset(values: NDArray[np.float64], index: int) -> float:
+    """Sub-step offset of a periodic minimum from a parabola through 3 points."""
+    n = values.size
+    left, mid, right = values[(index - 1) % n], values[index], values[(index + 1) % n]
+    curvature = left - 2.0 * mid + right
+    if curvature <= 0:
+        return 0.0
+    return float(np.clip(0.5 * (left - right) / curvature, -0.5, 0.5))
+
+
+def _check_metric(metric: str) -> str:
+    if metric not in METRICS:
+        raise ParameterError(f"metric must be one of {', '.join(METRICS)}; got {metric!r}")
+    return metric
+
+
+def _check_sample(radii: ArrayLike, n_angles: int) -> NDArray[np.float64]:
+    radii = np.asarray(radii, dtype=np.float64)
+    if radii.ndim != 1 or radii.size != n_angles:
+        raise ParameterError(
+            f"sample radii must be a 1-D array of {n_angles} values (the library's n_angles), "
+            f"got shape {radii.shape}"
+        )
+    if not np.all(np.isfinite(radii)) or np.any(radii < 0) or radii.max() <= 0:
+        raise ParameterError("sample radii must be finite, non-negative and not all zero")
+    return radii

@@ -1,0 +1,275 @@
+"""The stages composed: photo -> rocks -> outlines -> radii -> matches.
+
+``classify_image`` takes pixels; ``classify_path`` reads a file first. Neither
+prints: the command line formats what they return.
+"""
+
+from __future__ import annotations
+
+import os
+from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
+
+import numpy as np
+from numpy.typing import NDArray
+
+from rockscan.errors import RockscanError
+from rockscan.match import Match, MatchConfig, match_radii
+from rockscan.outline import Outline, trace_outline
+from rockscan.polar import contour_radii
+from rockscan.segment import Segmentation, SegmentConfig, segment
+
+if TYPE_CHECKING:
+    from rockscan.information import FaceConfig
+    from rockscan.library import Library, ShapeSpec
+
+__all__ = [
+    "ClassifyConfig",
+    "PhotoResult",
+    "RockResult",
+    "align_radii",
+    "classify_image",
+    "classify_path",
+    "library_from_spec",
+    "measure_rocks",
+]
+
+
+@dataclass(frozen=True)
+class ClassifyConfig:
+    """Settings for classifying photos: segmentation and matching."""
+
+    segment: SegmentConfig = field(default_factory=SegmentConfig)
+    match: MatchConfig = field(default_factory=MatchConfig)
+
+
+@dataclass(frozen=True, eq=False)
+class RockResult:
+    """One rock of a photo and its match.
+
+    Attributes
+    ----------
+    index : int
+        0 for the main rock; with all rocks, by decreasing area.
+    outline : Outline
+        Outline and centroid in photo pixels.
+    radii : (n_angles,) ndarray of float
+        Radii about the centroid, in photo pixels.
+    match : Match
+    """
+
+    index: int
+    outline: Outline
+    radii: NDArray[np.float64]
+    match: Match
+
+    @property
+    def centroid_xy(self) -> tuple[float, float]:
+        """Centroid as the interface's (x, y) = (col, row) pixel coordinates."""
+        row, col = self.outline.centroid_rowcol
+        return (float(col), float(row))
+
+    def to_dict(self) -> dict[str, object]:
+        """Interface keys for this rock (without ``path``)."""
+        return {
+            **self.match.to_dict(),
+            "centroid": [round(self.centroid_xy[0], 3), round(self.centroid_xy[1], 3)],
+            "index": self.index,
+            "area_px": round(self.outline.area_px, 1),
+        }
+
+
+@dataclass(frozen=True, eq=False)
+class PhotoResult:
+    """Everything found in one photo, or why nothing could be."""
+
+    path: str
+    rocks: tuple[RockResult, ...] = ()
+    error: str | None = None
+    segmentation: Segmentation | None = field(default=None, repr=False)
+
+    @property
+    def ok(self) -> bool:
+        return self.error is None
+
+    def records(self) -> list[dict[str, object]]:
+        """The interface's JSON objects: one per rock, or one error object."""
+        if self.error is not None:
+            return [{"path": self.path, "error": self.error}]
+        return [{"path": self.path, **rock.to_dict()} for rock in self.rocks]
+
+
+def measure_rocks(
+    pixels: NDArray[np.generic],
+    n_angles: int,
+    config: SegmentConfig | None = None,
+    *,
+    all_rocks: bool = False,
+    scale: float = 1.0,
+) -> tuple[Segmentation, list[tuple[Outline, NDArray[np.float64]]]]:
+    """Segment a photo and measure each rock's outline and radii.
+
+    Parameters
+    ----------
+    pixels : ndarray
+        The photo (see :func:`rockscan.segment.segment`).
+    n_angles : int
+        Number of rays for the radii.
+    config : SegmentConfig, optional
+    all_rocks : bool
+        Every rock, not only the main one.
+    scale : float
+        Full-resolution pixels per pixel of ``pixels`` (for photos decoded at
+        reduced size), so outlines come back in full-resolution pixels.
+
+    Returns
+    -------
+    segmentation : Segmentation
+    rocks : list of (Outline, radii)
+    """
+    seg = segment(pixels, config, all_rocks=all_rocks)
+    rocks = []
+    for index in range(1, seg.n_rocks + 1):
+        # One map covers both reductions: a working pixel spans seg.scale * scale
+        # photo pixels whether the photo was decoded at full or reduced size.
+        outline = trace_outline(seg.mask(index), scale=seg.scale * scale)
+        radii = contour_radii(outline.contour_rowcol, outline.centroid_rowcol, n_angles)
+        rocks.append((outline, radii))
+    return seg, rocks
+
+
+def classify_image(
+    pixels: NDArray[np.generic],
+    library: Library,
+    config: ClassifyConfig | None = None,
+    *,
+    all_rocks: bool = False,
+    scale: float = 1.0,
+) -> list[RockResult]:
+    """Find the rock(s) in a photo and match each against a library.
+
+    Parameters
+    ----------
+    pixels : ndarray
+        Gray, RGB or RGBA photo.
+    library : Library
+    config : ClassifyConfig, optional
+    all_rocks : bool
+        Classify every rock (``--all``), not only the main one.
+    scale : float
+        See :func:`measure_rocks`.
+
+    Returns
+    -------
+    list of RockResult
+        The main rock first.
+
+    Raises
+    ------
+    NoRockFoundError
+        If no rock stands out from the ground.
+    """
+    config = config or ClassifyConfig()
+    _, rocks = measure_rocks(
+        pixels, library.face_config.n_angles, config.segment, all_rocks=all_rocks, scale=scale
+    )
+    return [
+        RockResult(index=i, outline=outline, radii=radii, match=match_radii(radii, library, config.match))
+        for i, (outline, radii) in enumerate(rocks)
+    ]
+
+
+def classify_path(
+    path: str | os.PathLike[str],
+    library: Library,
+    config: ClassifyConfig | None = None,
+    *,
+    all_rocks: bool = False,
+) -> PhotoResult:
+    """Read a photo and classify it; a bad photo gives an error result, never an exception.
+
+    Only :class:`rockscan.errors.RockscanError` becomes an error result: anything
+    else is a bug and propagates.
+    """
+    from rockscan.io import read_image
+
+    config = config or ClassifyConfig()
+    try:
+        image = read_image(path, max_side=2 * config.segment.work_size)
+        rocks = classify_image(image.pixels, library, config, all_rocks=all_rocks, scale=image.scale)
+    except RockscanError as exc:
+        return PhotoResult(path=str(path), error=str(exc))
+    return PhotoResult(path=str(path), rocks=tuple(rocks))
+
+
+def library_from_spec(
+    shapes: list[ShapeSpec],
+    *,
+    face_config: FaceConfig | None = None,
+    segment_config: SegmentConfig | None = None,
+    n_components: int | None = None,
+) -> Library:
+    """Build a library from spec shapes, reading the example photos of shapes
+    given by ``images`` instead of parameters.
+
+    A shape given by examples gets the mean of their faces, after turning each
+    example to the first one's orientation (the rotation that best aligns
+    their radii), so that the examples reinforce rather than blur each other.
+    Its radii (for drawing) are the mean of the aligned examples' radii.
+
+    Raises
+    ------
+    SpecError
+        If an example photo cannot be read or shows no rock.
+    """
+    from rockscan.errors import SpecError
+    from rockscan.information import FaceConfig, information_face
+    from rockscan.io import read_image
+    from rockscan.library import Library, shape_radii
+
+    config = face_config or FaceConfig()
+    n = config.n_angles
+    names, radii, faces, params, interest = [], [], [], [], []
+    for shape in shapes:
+        if shape.params is not None:
+            try:
+                r = shape_radii(shape.params, n)
+            except RockscanError as exc:
+                raise SpecError(f"shape {shape.name!r}: {exc}") from None
+            examples = r[None, :]
+        else:
+            measured = []
+            for image_path in shape.images:
+                try:
+                    image = read_image(image_path, max_side=2 * (segment_config or SegmentConfig()).work_size)
+                    _, rocks = measure_rocks(image.pixels, n, segment_config, scale=image.scale)
+                except RockscanError as exc:
+                    raise SpecError(f"shape {shape.name!r}: example {image_path}: {exc}") from None
+                r = rocks[0][1]
+                measured.append(r / r.mean())
+            examples = align_radii(np.array(measured))
+        names.append(shape.name)
+        radii.append(examples.mean(axis=0))
+        faces.append(information_face(examples, config).mean(axis=0))
+        params.append(shape.params)
+        interest.append(shape.interest)
+    return Library.from_radii(
+        names,
+        np.array(radii),
+        face_config=config,
+        params=params,
+        interest=interest,
+        faces=np.array(faces),
+        n_components=n_components,
+    )
+
+
+def align_radii(radii: NDArray[np.float64]) -> NDArray[np.float64]:
+    """Turn each row of radii to the orientation of the first (best circular
+    cross-correlation of the mean-normalised radii); returns the turned rows."""
+    radii = np.asarray(radii, dtype=np.float64)
+    normalized = radii / radii.mean(axis=1, keepdims=True) - 1.0
+    spectra = np.fft.rfft(normalized, axis=1)
+    corr = np.fft.irfft(np.conj(spectra[:1]) * spectra, n=radii.shape[1], axis=1)
+    shifts = np.argmax(corr, axis=1)
+    return np.stack([np.roll(row, -int(s)) for row, s in zip(radii, shifts, strict=True)])
