@@ -30,6 +30,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from scipy.special import ndtr
 
+from rockscan._choices import FACE_KINDS, GRIDS
 from rockscan.errors import ParameterError
 from rockscan.superformula import SuperformulaParams
 
@@ -48,10 +49,6 @@ __all__ = [
     "shannon_bits",
 ]
 
-#: Face kinds: the paper's two variants and the plain radii baseline.
-FACE_KINDS = ("information", "information-shape", "radii")
-#: Grids a face may live on. "polar" turns by shifting; "cartesian" is the paper's map.
-GRIDS = ("polar", "cartesian")
 #: Radius of the paper's reference circle, in units of the analysis map.
 REFERENCE_RADIUS = 0.5 * math.sqrt(2.0)
 

@@ -23,14 +23,13 @@ from typing import TYPE_CHECKING
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from rockscan._choices import METRICS
 from rockscan.errors import ParameterError
 from rockscan.information import information_face, sample_term
 
 if TYPE_CHECKING:
     from rockscan.library import Library
 
-#: What the distances ``w`` measure (see MatchConfig).
-METRICS = ("face", "eigenspace")
 
 __all__ = [
     "DEFAULT_CUTOFFS",

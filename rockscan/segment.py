@@ -38,6 +38,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
+from rockscan._choices import POLARITIES
 from rockscan.errors import NoRockFoundError, ParameterError
 
 __all__ = ["SegmentConfig", "Segmentation", "segment", "to_gray"]
@@ -82,7 +83,7 @@ class SegmentConfig:
             raise ParameterError("work_size must be at least 32 pixels")
         if self.median < 1 or self.median % 2 == 0:
             raise ParameterError("median must be an odd aperture >= 1")
-        if self.polarity not in ("auto", "dark", "light"):
+        if self.polarity not in POLARITIES:
             raise ParameterError("polarity must be 'auto', 'dark' or 'light'")
         if not 0 < self.lighting_sigma <= 2:
             raise ParameterError("lighting_sigma must be in (0, 2]")
@@ -179,6 +180,17 @@ def segment(
     return _finish(masks, scale, polarity, config, all_rocks)
 
 
+def _reduce(arr: NDArray[np.generic], size: tuple[int, int]) -> NDArray[np.generic]:
+    """Area-average an image to ``size`` = (cols, rows) in its own dtype."""
+    import cv2
+
+    if (arr.shape[1], arr.shape[0]) == size:
+        return arr
+    if arr.dtype not in (np.uint8, np.uint16, np.float32, np.float64):
+        arr = arr.astype(np.float32)
+    return cv2.resize(arr, size, interpolation=cv2.INTER_AREA)
+
+
 def _unit(arr: NDArray[np.generic], dtype: np.dtype) -> NDArray[np.float32]:
     if dtype.kind == "u" or dtype.kind == "i":
         top = float(np.iinfo(dtype).max)
@@ -188,26 +200,25 @@ def _unit(arr: NDArray[np.generic], dtype: np.dtype) -> NDArray[np.float32]:
 
 def _alpha_mask(arr: NDArray[np.generic], size: tuple[int, int]) -> NDArray[np.bool_] | None:
     """The rock cut out by an alpha channel, if the photo has a meaningful one."""
-    import cv2
 
     if arr.ndim != 3 or arr.shape[2] != 4:
         return None
-    alpha = _unit(arr[..., 3], arr.dtype)
-    transparent = float((alpha < 0.5).mean())
+    small = _unit(_reduce(np.ascontiguousarray(arr[..., 3]), size), arr.dtype)
+    transparent = float((small < 0.5).mean())
     if not 0.05 < transparent < 0.98:
         return None
-    small = cv2.resize(alpha, size, interpolation=cv2.INTER_AREA)
     return small >= 0.5
 
 
 def _channels(arr: NDArray[np.generic], size: tuple[int, int]) -> list[NDArray[np.float32]]:
     """Candidate brightness channels at working size."""
-    import cv2
 
     dtype = arr.dtype
+    # Reduce first, in the photo's own type: a float copy of an 8000 x 8000
+    # colour photo would cost 768 MB.
     if arr.ndim == 2:
-        return [cv2.resize(_unit(arr, dtype), size, interpolation=cv2.INTER_AREA)]
-    color = cv2.resize(_unit(arr[..., :3], dtype), size, interpolation=cv2.INTER_AREA)
+        return [_unit(_reduce(arr, size), dtype)]
+    color = _unit(_reduce(np.ascontiguousarray(arr[..., :3]), size), dtype)
     luminance = color @ np.array([0.299, 0.587, 0.114], np.float32)
     flat = color.reshape(-1, 3)
     centered = flat - flat.mean(axis=0)

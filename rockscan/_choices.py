@@ -1,0 +1,18 @@
+"""Names of the choices the library offers, importable without numpy.
+
+The stages define their behaviour for each name; the command line offers these
+names as its option choices, so both always agree.
+"""
+
+from __future__ import annotations
+
+#: Face kinds: the paper's variants 1 and 2, and the plain radii baseline.
+FACE_KINDS = ("information", "information-shape", "radii")
+#: Grids a face may live on.
+GRIDS = ("polar", "cartesian")
+#: What a match distance measures.
+METRICS = ("eigenspace", "face")
+#: Matcher presets of the command line: rockscan's default and the paper's exact method.
+METHODS = ("default", "paper")
+#: Rock polarity settings of the segmentation.
+POLARITIES = ("auto", "dark", "light")

@@ -1,0 +1,156 @@
+"""The ``rockscan`` command line: parse, call the library, format.
+
+No math lives here. Heavy modules are imported inside the commands so that
+``rockscan --help`` starts at once. A :class:`rockscan.errors.RockscanError`
+becomes a one-line error and exit status 1; usage errors exit 2 (click).
+
+One module per command family; this one holds the group and shared options.
+"""
+
+from __future__ import annotations
+
+import functools
+import os
+import sys
+from collections.abc import Callable
+from typing import Any
+
+import click
+
+from rockscan._choices import METHODS, METRICS
+
+
+def _fail(message: str, status: int = 1) -> None:
+    click.echo(f"rockscan: error: {message}", err=True)
+    sys.exit(status)
+
+
+def _errors(func: Callable[..., Any]) -> Callable[..., Any]:
+    """Turn the library's errors into one clear line and exit status 1."""
+
+    @functools.wraps(func)
+    def wrapper(*args: Any, **kwargs: Any) -> Any:
+        from rockscan.errors import RockscanError
+
+        try:
+            return func(*args, **kwargs)
+        except RockscanError as exc:
+            _fail(str(exc))
+        except BrokenPipeError:
+            # The reader went away (| head): stop quietly, as Unix tools do.
+            devnull = os.open(os.devnull, os.O_WRONLY)
+            os.dup2(devnull, sys.stdout.fileno())
+            sys.exit(1)
+        except KeyboardInterrupt:
+            _fail("interrupted", 130)
+
+    return wrapper
+
+
+def _library_option(func: Callable[..., Any]) -> Callable[..., Any]:
+    return click.option(
+        "--library",
+        "-l",
+        "library_path",
+        type=click.Path(dir_okay=False),
+        default=None,
+        help="Library file (.npz from 'rockscan library build') or spec (.toml). "
+        "Default: the built-in library.",
+    )(func)
+
+
+def _match_options(func: Callable[..., Any]) -> Callable[..., Any]:
+    options = [
+        click.option(
+            "--method",
+            type=click.Choice(METHODS),
+            default="default",
+            show_default=True,
+            help="'paper': the paper's exact matcher (eigenspace distance for shape and angle).",
+        ),
+        click.option(
+            "--metric",
+            type=click.Choice(METRICS),
+            default=None,
+            help="Distance that ranks shapes (default: eigenspace).",
+        ),
+        click.option(
+            "--angle-metric",
+            type=click.Choice(METRICS),
+            default=None,
+            help="Distance the angle minimises (default: face).",
+        ),
+        click.option(
+            "--distance-cutoff",
+            type=float,
+            default=None,
+            help="Largest eigenspace distance of an interesting match (the paper's theta).",
+        ),
+        click.option(
+            "--mscore-cutoff",
+            type=float,
+            default=None,
+            help="MScore an interesting match must exceed (the paper's gamma).",
+        ),
+        click.option(
+            "--no-scan", is_flag=True, help="Match the outline as it lies, without the rotation scan."
+        ),
+    ]
+    for option in reversed(options):
+        func = option(func)
+    return func
+
+
+def _match_config(
+    method: str,
+    metric: str | None,
+    angle_metric: str | None,
+    distance_cutoff: float | None,
+    mscore_cutoff: float | None,
+    no_scan: bool,
+) -> Any:
+    from rockscan.match import MatchConfig
+
+    paper = method == "paper"
+    return MatchConfig(
+        metric=metric or "eigenspace",
+        angle_metric=angle_metric or ("eigenspace" if paper else "face"),
+        distance_cutoff=distance_cutoff,
+        mscore_cutoff=mscore_cutoff,
+        scan=not no_scan,
+    )
+
+
+def _load_library(path: str | None) -> Any:
+    from rockscan.io import default_library, load_library, read_spec
+    from rockscan.library import Library
+
+    if path is None:
+        return default_library()
+    if path.lower().endswith(".toml"):
+        shapes = read_spec(path)
+        if any(s.params is None for s in shapes):
+            from rockscan.pipeline import library_from_spec
+
+            return library_from_spec(shapes)
+        return Library.from_shapes(shapes)
+    return load_library(path)
+
+
+@click.group(context_settings={"help_option_names": ["-h", "--help"], "max_content_width": 100})
+@click.version_option(package_name="rockscan", prog_name="rockscan")
+def main() -> None:
+    """Judge rock samples by their shape.
+
+    rockscan finds the rock in a photo, measures its outline, and matches it
+    against a library of Superformula shapes of interest (Fleetwood &
+    Thangavelautham): nearest shape, match quality (MScore), rotation, and
+    whether the sample is worth keeping.
+    """
+
+
+def _register() -> None:
+    from rockscan.cli import _classify, _library, _render  # noqa: F401
+
+
+_register()

@@ -1,0 +1,141 @@
+"""``rockscan library``: build, show (and grow) shape libraries."""
+
+from __future__ import annotations
+
+import json
+
+import click
+
+from rockscan._choices import FACE_KINDS, GRIDS
+from rockscan.cli import _errors, _load_library, main
+
+# ---------------------------------------------------------------- library
+
+
+@main.group()
+def library() -> None:
+    """Build, inspect and grow shape libraries."""
+
+
+@library.command("build")
+@click.argument("spec", type=click.Path(dir_okay=False))
+@click.option(
+    "-o", "--output", required=True, type=click.Path(dir_okay=False), help="Library file to write (.npz)."
+)
+@click.option(
+    "--face",
+    "face_kind",
+    type=click.Choice(FACE_KINDS),
+    default="information",
+    show_default=True,
+    help="Face kind: the paper's variants 1 and 2, or plain radii.",
+)
+@click.option(
+    "--reference",
+    default=None,
+    help="For --face information-shape: name of the spec shape to compare against.",
+)
+@click.option(
+    "--sigma", type=float, default=0.1, show_default=True, help="Sensor model standard deviation (map units)."
+)
+@click.option(
+    "--n-angles", type=int, default=360, show_default=True, help="Rays per shape (rotation step 360/n)."
+)
+@click.option(
+    "--resolution",
+    type=float,
+    default=0.02,
+    show_default=True,
+    help="Section length along a ray (map units).",
+)
+@click.option(
+    "--grid",
+    type=click.Choice(GRIDS),
+    default="polar",
+    show_default=True,
+    help="'cartesian' is the paper's grid map (slower; for reproduction).",
+)
+@click.option(
+    "--components", type=int, default=None, help="Keep at most this many eigenfaces (default: all non-zero)."
+)
+@_errors
+def library_build(
+    spec: str,
+    output: str,
+    face_kind: str,
+    reference: str | None,
+    sigma: float,
+    n_angles: int,
+    resolution: float,
+    grid: str,
+    components: int | None,
+) -> None:
+    """Build a library file from a spec (TOML with [[shape]] tables)."""
+    from rockscan.errors import SpecError
+    from rockscan.information import FaceConfig
+    from rockscan.io import read_spec, save_library
+    from rockscan.pipeline import library_from_spec
+
+    shapes = read_spec(spec)
+    ref_params = None
+    if face_kind == "information-shape":
+        if reference is None:
+            raise SpecError("--face information-shape needs --reference NAME (a shape of the spec)")
+        found = [s for s in shapes if s.name == reference and s.params is not None]
+        if not found:
+            raise SpecError(f"--reference {reference!r} is not a Superformula shape of {spec}")
+        ref_params = found[0].params
+    config = FaceConfig(
+        kind=face_kind, sigma=sigma, n_angles=n_angles, resolution=resolution, grid=grid, reference=ref_params
+    )
+    lib = library_from_spec(shapes, face_config=config, n_components=components)
+    save_library(lib, output)
+    click.echo(
+        f"wrote {output}: {len(lib)} shapes, {lib.basis.n_components} eigenfaces, "
+        f"face {face_kind} {'x'.join(map(str, config.face_shape))}"
+    )
+
+
+@library.command("show")
+@click.argument("lib", type=click.Path(dir_okay=False))
+@click.option(
+    "--plot", "plot_path", type=click.Path(dir_okay=False), default=None, help="Draw the shapes to a PNG."
+)
+@click.option("--json", "as_json", is_flag=True, help="One JSON object per shape.")
+@_errors
+def library_show(lib: str, plot_path: str | None, as_json: bool) -> None:
+    """List a library's shapes (a .npz library or a .toml spec)."""
+    library_obj = _load_library(lib)
+    face = library_obj.face_config
+    if as_json:
+        for i, name in enumerate(library_obj.names):
+            params = library_obj.params[i]
+            click.echo(
+                json.dumps(
+                    {
+                        "name": name,
+                        "symmetry": int(library_obj.symmetry[i]),
+                        "interest": float(library_obj.interest[i]),
+                        "params": params.as_dict() if params is not None else None,
+                    }
+                )
+            )
+    else:
+        click.echo(
+            f"{lib}: {len(library_obj)} shapes, {library_obj.basis.n_components} eigenfaces; "
+            f"face {face.kind} on a {face.grid} grid {'x'.join(map(str, face.face_shape))}, "
+            f"sigma {face.sigma:g}"
+        )
+        click.echo(f"{'name':<22} {'symmetry':>8} {'interest':>8}  parameters (m1 m2 n1 n2 n3 a b)")
+        for i, name in enumerate(library_obj.names):
+            params = library_obj.params[i]
+            text = " ".join(f"{v:g}" for v in params.as_dict().values()) if params else "(from examples)"
+            order = int(library_obj.symmetry[i])
+            click.echo(
+                f"{name:<22} {'circle' if order == 0 else order:>8} {library_obj.interest[i]:>8g}  {text}"
+            )
+    if plot_path:
+        from rockscan.plot import plot_library
+
+        plot_library(library_obj, plot_path)
+        click.echo(f"drew {plot_path}", err=as_json)
