@@ -150,7 +150,7 @@ def main() -> None:
 
 
 def _register() -> None:
-    from rockscan.cli import _classify, _library, _render  # noqa: F401
+    from rockscan.cli import _classify, _fit, _library, _render, _triage  # noqa: F401
 
 
 _register()
