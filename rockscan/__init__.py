@@ -16,26 +16,54 @@ from typing import Any
 __version__ = "0.1.0"
 
 _API = {
+    # errors
     "RockscanError": "rockscan.errors",
     "ParameterError": "rockscan.errors",
     "ImageReadError": "rockscan.errors",
     "NoRockFoundError": "rockscan.errors",
     "LibraryError": "rockscan.errors",
     "SpecError": "rockscan.errors",
+    # shapes and radii
     "SuperformulaParams": "rockscan.superformula",
     "superformula": "rockscan.superformula",
     "polar_angles": "rockscan.polar",
     "contour_radii": "rockscan.polar",
     "symmetry_order": "rockscan.polar",
     "rotate_radii": "rockscan.polar",
+    "recenter_radii": "rockscan.polar",
+    # faces, eigenfaces, libraries, matching
     "FaceConfig": "rockscan.information",
     "information_face": "rockscan.information",
     "EigenBasis": "rockscan.eigen",
     "ShapeSpec": "rockscan.library",
     "Library": "rockscan.library",
+    "shape_radii": "rockscan.library",
     "MatchConfig": "rockscan.match",
     "Match": "rockscan.match",
     "match_radii": "rockscan.match",
+    "rotation_scores": "rockscan.match",
+    # photos
+    "SegmentConfig": "rockscan.segment",
+    "segment": "rockscan.segment",
+    "trace_outline": "rockscan.outline",
+    "ClassifyConfig": "rockscan.pipeline",
+    "classify_image": "rockscan.pipeline",
+    "classify_path": "rockscan.pipeline",
+    "measure_rocks": "rockscan.pipeline",
+    "library_from_spec": "rockscan.pipeline",
+    "RenderConfig": "rockscan.render",
+    "render_photo": "rockscan.render",
+    "render_scene": "rockscan.render",
+    "random_superformula": "rockscan.render",
+    # files
+    "read_image": "rockscan.io",
+    "read_spec": "rockscan.io",
+    "write_spec": "rockscan.io",
+    "read_radii": "rockscan.io",
+    "load_library": "rockscan.io",
+    "save_library": "rockscan.io",
+    "default_library": "rockscan.io",
+    "default_spec_path": "rockscan.io",
 }
 
 __all__ = [*sorted(_API), "__version__"]

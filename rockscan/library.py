@@ -30,6 +30,8 @@ __all__ = ["NAME_PATTERN", "Library", "ShapeSpec", "shape_radii"]
 
 #: Allowed shape names.
 NAME_PATTERN = re.compile(r"^[a-z0-9-]+$")
+#: A radius this many times the median marks an unbounded curve.
+_MAX_SPIKE = 1e4
 
 
 @dataclass(frozen=True)
@@ -84,8 +86,11 @@ def shape_radii(params: SuperformulaParams, n_angles: int) -> NDArray[np.float64
     """
     theta = polar_angles(n_angles)
     radii = params.radii(theta)
-    if not np.all(np.isfinite(radii)) or np.any(radii <= 0):
-        bad = np.flatnonzero(~np.isfinite(radii) | (radii <= 0))
+    with np.errstate(invalid="ignore", divide="ignore"):
+        # A pole that the rays straddle shows as an absurd spike rather than inf.
+        spike = radii > _MAX_SPIKE * np.nanmedian(radii)
+    if not np.all(np.isfinite(radii)) or np.any(radii <= 0) or np.any(spike):
+        bad = np.flatnonzero(~np.isfinite(radii) | (radii <= 0) | spike)
         raise ParameterError(
             f"Superformula {params.as_dict()} is unbounded or degenerate at "
             f"{np.rad2deg(theta[bad[0]]):.1f} degrees; choose parameters whose curve is closed"
@@ -186,6 +191,8 @@ class Library:
         """
         config = face_config or FaceConfig()
         names = tuple(names)
+        if len(names) < 2:
+            raise LibraryError("a library needs at least two shapes (MScore compares a match with the others)")
         for name in names:
             if not isinstance(name, str) or not NAME_PATTERN.match(name):
                 raise LibraryError(f"shape name {name!r} must match [a-z0-9-]+")

@@ -207,13 +207,23 @@ def recenter_radii(radii: ArrayLike) -> tuple[NDArray[np.float64], NDArray[np.fl
 def rotate_radii(radii: ArrayLike, angle_deg: float) -> NDArray[np.float64]:
     """Turn an outline counter-clockwise by ``angle_deg``, exactly, via Fourier.
 
-    ``rotate_radii(r, alpha)[i] = r(theta_i - alpha)`` for band-limited radii;
-    integer multiples of the ray step are exact circular shifts.
+    Parameters
+    ----------
+    radii : (n_angles,) array_like of float
+        Radii at :func:`polar_angles`.
+    angle_deg : float
+        Counter-clockwise turn, degrees.
+
+    Returns
+    -------
+    turned : (n_angles,) ndarray of float
+        ``r(theta_i - alpha)``: exact for band-limited radii, and an exact
+        circular shift for whole multiples of the ray step.
     """
     radii = np.asarray(radii, dtype=np.float64)
     n = radii.size
     shift = angle_deg / 360.0 * n
-    if np.isclose(shift, np.round(shift), atol=1e-9):
+    if abs(shift - round(shift)) < 1e-9:
         return np.roll(radii, int(np.round(shift)))
     spectrum = np.fft.rfft(radii)
     freq = np.arange(spectrum.size)

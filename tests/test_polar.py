@@ -1,0 +1,119 @@
+"""Polar radii: the coordinate convention, ray casting, centring, turning, symmetry."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from hypothesis import given
+from hypothesis import strategies as st
+
+from rockscan.errors import ParameterError
+from rockscan.library import shape_radii
+from rockscan.polar import (
+    contour_radii,
+    polar_angles,
+    polygon_centroid_xy,
+    radii_to_xy,
+    recenter_radii,
+    rotate_radii,
+    rowcol_from_xy,
+    symmetry_order,
+    xy_from_rowcol,
+)
+from rockscan.superformula import SuperformulaParams
+
+
+def test_angles_are_counter_clockwise_from_x():
+    theta = polar_angles(8)
+    np.testing.assert_allclose(theta, np.arange(8) * np.pi / 4)
+    with pytest.raises(ParameterError, match="n_angles"):
+        polar_angles(4)
+
+
+def test_convention_with_an_asymmetric_shape():
+    # A point right of the centroid is theta = 0; above it (smaller row) is 90 deg.
+    centroid = np.array([50.0, 40.0])  # (row, col)
+    pts = np.array([[50.0, 47.0], [43.0, 40.0], [50.0, 38.0], [55.0, 40.0]])
+    xy = xy_from_rowcol(pts, centroid)
+    np.testing.assert_allclose(xy, [[7, 0], [0, 7], [-2, 0], [0, -5]])
+    np.testing.assert_allclose(np.degrees(np.arctan2(xy[:, 1], xy[:, 0])), [0, 90, 180, -90])
+    np.testing.assert_allclose(rowcol_from_xy(xy, centroid), pts)
+    # A kite, long to the right (7) and short below (5): radii read it back.
+    radii = contour_radii(pts, centroid, 360)
+    assert radii[0] == pytest.approx(7) and radii[90] == pytest.approx(7)
+    assert radii[180] == pytest.approx(2) and radii[270] == pytest.approx(5)
+
+
+def test_radii_of_a_polygonal_circle_and_square():
+    t = np.linspace(0, 2 * np.pi, 4000, endpoint=False)
+    circle = np.column_stack([30 - 12 * np.sin(t), 20 + 12 * np.cos(t)])
+    np.testing.assert_allclose(contour_radii(circle, [30, 20], 360), 12, rtol=1e-5)
+    square = np.array([[-1, -1], [-1, 1], [1, 1], [1, -1]], float) * 10  # (row, col)
+    radii = contour_radii(square, [0, 0], 360)
+    theta = polar_angles(360)
+    expected = 10 / np.maximum(np.abs(np.cos(theta)), np.abs(np.sin(theta)))
+    np.testing.assert_allclose(radii, expected, rtol=1e-12)
+    # The outline's start and direction do not matter.
+    np.testing.assert_allclose(contour_radii(np.roll(square[::-1], 2, axis=0), [0, 0], 360), radii)
+
+
+def test_bad_contours_are_rejected():
+    with pytest.raises(ParameterError, match="at least 3"):
+        contour_radii(np.zeros((2, 2)), [0, 0], 360)
+    with pytest.raises(ParameterError, match="finite"):
+        contour_radii(np.array([[0, 0], [1, np.nan], [1, 1]]), [0, 0], 360)
+
+
+def test_polygon_centroid_of_a_triangle():
+    tri = np.array([[0.0, 0.0], [3.0, 0.0], [0.0, 3.0]])
+    np.testing.assert_allclose(polygon_centroid_xy(tri), [1.0, 1.0])
+    np.testing.assert_allclose(polygon_centroid_xy(tri[::-1]), [1.0, 1.0])
+
+
+def test_recenter_moves_the_origin_to_the_area_centroid():
+    # The egg (m = 1) is not point-symmetric: its origin is not its centroid.
+    raw = SuperformulaParams(1, 1, 0.75, 0.75, 0.75).radii(polar_angles(360))
+    centered, offset = recenter_radii(raw)
+    assert np.hypot(*offset) > 0.05
+    np.testing.assert_allclose(polygon_centroid_xy(radii_to_xy(centered)), 0, atol=2e-3)
+    # A symmetric shape stays put.
+    star = SuperformulaParams(6, 6, 0.2, 1.7, 1.7).radii(polar_angles(360))
+    again, offset = recenter_radii(star)
+    np.testing.assert_allclose(offset, 0, atol=1e-12)
+    np.testing.assert_allclose(again, star, rtol=1e-9)
+
+
+@given(shift=st.integers(-720, 720))
+def test_rotate_by_whole_steps_is_a_shift(shift):
+    radii = shape_radii(SuperformulaParams(5, 5, 2, 7, 7), 360)
+    np.testing.assert_array_equal(rotate_radii(radii, float(shift)), np.roll(radii, shift))
+
+
+@given(angle=st.floats(0, 360))
+def test_rotate_by_any_angle_samples_the_turned_curve(angle):
+    # A band-limited outline turns exactly: r(theta - alpha).
+    theta = polar_angles(360)
+    radii = 1 + 0.2 * np.cos(3 * theta) + 0.1 * np.sin(2 * theta + 0.3)
+    alpha = np.radians(angle)
+    expected = 1 + 0.2 * np.cos(3 * (theta - alpha)) + 0.1 * np.sin(2 * (theta - alpha) + 0.3)
+    np.testing.assert_allclose(rotate_radii(radii, angle), expected, atol=1e-12)
+
+
+@pytest.mark.parametrize(
+    ("params", "order"),
+    [
+        ((0, 0, 1, 1, 1), 0),
+        ((3, 3, 1500, 1500, 1500), 3),  # odd m, yet 3-fold: theta/4 inside the formula
+        ((6, 6, 60, 55, 10), 3),  # m = 6 with n2 != n3: only 3-fold
+        ((6, 6, 0.2, 1.7, 1.7), 6),
+        ((5, 5, 2, 7, 7), 5),
+        ((1, 1, 0.75, 0.75, 0.75), 1),
+        ((4, 4, 2, 2, 2, 1, 0.6), 2),
+    ],
+)
+def test_symmetry_is_read_from_the_radii(params, order):
+    radii = shape_radii(SuperformulaParams(*params), 360)
+    assert symmetry_order(radii) == order
+    if order >= 1:
+        # The shape really is unchanged by a turn of 360/order degrees.
+        np.testing.assert_allclose(rotate_radii(radii, 360 / max(order, 1)), radii, atol=5e-3)

@@ -1,0 +1,38 @@
+"""The public surface: every name in __all__ resolves and is documented; import stays light."""
+
+from __future__ import annotations
+
+import inspect
+import subprocess
+import sys
+
+import pytest
+
+import rockscan
+
+
+@pytest.mark.parametrize("name", [n for n in rockscan.__all__ if n != "__version__"])
+def test_public_names_resolve_and_are_documented(name):
+    obj = getattr(rockscan, name)
+    doc = inspect.getdoc(obj) or ""
+    assert len(doc) > 20, f"{name} needs a docstring"
+    if inspect.isfunction(obj) and obj.__module__.startswith("rockscan"):
+        params = [p for p in inspect.signature(obj).parameters if p not in ("self", "cls")]
+        if params:
+            assert "Parameters" in doc or "See :func:" in doc, f"{name}: document its parameters"
+
+
+def test_unknown_name():
+    with pytest.raises(AttributeError, match="no attribute 'moon'"):
+        rockscan.moon  # noqa: B018
+
+
+def test_importing_the_package_and_cli_stays_light():
+    # `rockscan --help` must start at once: no numpy, scipy, OpenCV or skimage.
+    code = (
+        "import sys, rockscan, rockscan.cli; "
+        "heavy = [m for m in ('numpy', 'scipy', 'cv2', 'skimage', 'matplotlib') if m in sys.modules]; "
+        "print(','.join(heavy))"
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert out.stdout.strip() == ""
