@@ -192,7 +192,9 @@ class Library:
         config = face_config or FaceConfig()
         names = tuple(names)
         if len(names) < 2:
-            raise LibraryError("a library needs at least two shapes (MScore compares a match with the others)")
+            raise LibraryError(
+                "a library needs at least two shapes (MScore compares a match with the others)"
+            )
         for name in names:
             if not isinstance(name, str) or not NAME_PATTERN.match(name):
                 raise LibraryError(f"shape name {name!r} must match [a-z0-9-]+")
