@@ -132,7 +132,19 @@ def parse_spec(data: dict[str, object], *, base: Path | None = None, source: str
 
 
 def write_spec(shapes: Sequence[ShapeSpec], path: str | os.PathLike[str] | None = None) -> str:
-    """Write shapes as a spec (TOML); return the text. ``path=None`` only returns it."""
+    """Write shapes as a spec (TOML).
+
+    Parameters
+    ----------
+    shapes : sequence of ShapeSpec
+    path : path-like, optional
+        File to write (atomically). None only returns the text.
+
+    Returns
+    -------
+    text : str
+        The spec, readable by :func:`read_spec`.
+    """
     lines: list[str] = []
     for shape in shapes:
         lines.append("[[shape]]")
@@ -141,7 +153,7 @@ def write_spec(shapes: Sequence[ShapeSpec], path: str | os.PathLike[str] | None 
             for key, value in shape.params.as_dict().items():
                 lines.append(f"{key} = {_toml_float(value)}")
         if shape.images:
-            listed = ", ".join(json.dumps(p) for p in shape.images)
+            listed = ", ".join(_toml_string(p) for p in shape.images)
             lines.append(f"images = [{listed}]")
         if shape.interest != 1.0:
             lines.append(f"interest = {_toml_float(shape.interest)}")
@@ -150,6 +162,21 @@ def write_spec(shapes: Sequence[ShapeSpec], path: str | os.PathLike[str] | None 
     if path is not None:
         _atomic_write_bytes(Path(path), text.encode("utf-8"))
     return text
+
+
+def _toml_string(text: str) -> str:
+    """A TOML basic string. JSON's escapes are not TOML's: JSON writes a character
+    beyond U+FFFF as a surrogate pair, which TOML refuses, and leaves U+007F bare."""
+    out = []
+    for ch in text:
+        code = ord(ch)
+        if ch in '"\\':
+            out.append("\\" + ch)
+        elif (code < 0x20 and ch != "\t") or code == 0x7F:
+            out.append(f"\\u{code:04x}")
+        else:
+            out.append(ch)
+    return '"' + "".join(out) + '"'
 
 
 def _toml_float(value: float) -> str:
@@ -163,8 +190,17 @@ def _toml_float(value: float) -> str:
 def save_library(library: Library, path: str | os.PathLike[str]) -> None:
     """Write a library file (``.npz`` with JSON metadata; no pickle).
 
-    The file is written to a temporary name and renamed, so an interrupted save
-    never leaves a half-written library behind.
+    Parameters
+    ----------
+    library : Library
+    path : path-like
+        File to write. It is written to a temporary name and renamed, so an
+        interrupted save never leaves a half-written library behind.
+
+    Raises
+    ------
+    LibraryError
+        If the file cannot be written.
     """
     metadata = {
         "format": LIBRARY_FORMAT,
@@ -198,6 +234,14 @@ def save_library(library: Library, path: str | os.PathLike[str]) -> None:
 def load_library(path: str | os.PathLike[str]) -> Library:
     """Read a library file written by :func:`save_library`.
 
+    Parameters
+    ----------
+    path : path-like
+
+    Returns
+    -------
+    Library
+
     Raises
     ------
     LibraryError
@@ -214,21 +258,28 @@ def load_library(path: str | os.PathLike[str]) -> Library:
     if path.is_dir():
         raise LibraryError(f"{path}: is a folder, not a library file")
     try:
-        with np.load(path, allow_pickle=False) as archive:
-            if not isinstance(archive, np.lib.npyio.NpzFile):
+        with open(path, "rb") as fh:
+            magic = fh.read(6)
+            if not magic:
+                raise LibraryError(f"{path}: file is empty, not a rockscan library")
+            if magic.startswith(b"\x93NUMPY"):
                 raise LibraryError(
                     f"{path}: not a rockscan library (a bare numpy array, not an .npz archive)"
                 )
-            missing = [k for k in ("metadata", *_ARRAYS) if k not in archive.files]
-            if missing:
-                raise LibraryError(f"{path}: not a rockscan library (missing {', '.join(missing)})")
-            raw = archive["metadata"]
-            arrays = {k: archive[k] for k in _ARRAYS}
+            if not magic.startswith(b"PK"):
+                raise LibraryError(f"{path}: not a rockscan library (not an .npz archive)")
+            fh.seek(0)
+            with np.load(fh, allow_pickle=False) as archive:
+                missing = [k for k in ("metadata", *_ARRAYS) if k not in archive.files]
+                if missing:
+                    raise LibraryError(f"{path}: not a rockscan library (missing {', '.join(missing)})")
+                raw = archive["metadata"]
+                arrays = {k: archive[k] for k in _ARRAYS}
     except LibraryError:
         raise
     except (zipfile.BadZipFile, zlib.error, EOFError) as exc:
-        raise LibraryError(f"{path}: library file is truncated or corrupt ({exc})") from None
-    except (ValueError, OSError, AttributeError) as exc:
+        raise LibraryError(f"{path}: library file is truncated or corrupt ({_first_line(exc)})") from None
+    except (ValueError, OSError, AttributeError, KeyError) as exc:
         raise LibraryError(f"{path}: not a rockscan library file ({_first_line(exc)})") from None
     if not isinstance(raw, np.ndarray) or raw.dtype != np.uint8 or raw.ndim != 1:
         raise LibraryError(f"{path}: not a rockscan library (bad metadata record)")
@@ -282,7 +333,17 @@ _DEFAULT_CACHE: dict[object, Library] = {}
 
 
 def default_library(face_config: FaceConfig | None = None) -> Library:
-    """The built-in default library, built from its spec once per process."""
+    """The built-in default library, built from its spec once per process.
+
+    Parameters
+    ----------
+    face_config : FaceConfig, optional
+        Face settings (default: the paper's variant 1 on the polar grid).
+
+    Returns
+    -------
+    Library
+    """
     from rockscan.information import FaceConfig
     from rockscan.library import Library
 
@@ -299,6 +360,14 @@ def default_library(face_config: FaceConfig | None = None) -> Library:
 def read_radii(path: str | os.PathLike[str]) -> NDArray[np.float64]:
     """Read an outline given as radii: a text file of numbers (any whitespace or
     commas), or a ``.npy`` array, sampled at equal angles from theta = 0.
+
+    Parameters
+    ----------
+    path : path-like
+
+    Returns
+    -------
+    radii : (n,) ndarray of float
 
     Raises
     ------
@@ -332,21 +401,40 @@ def read_image(path: str | os.PathLike[str], *, max_side: int | None = None) -> 
     ----------
     path : path-like
     max_side : int, optional
-        For very large photos, decode at 1/2, 1/4 or 1/8 size (JPEG decodes
-        directly at that size) so that the longer side is close to this, and
-        keep memory bounded. The returned ``scale`` maps back to full pixels.
+        A photo whose longer side exceeds twice this is reduced while decoding
+        by an integer factor ``k`` that keeps the longer side at least
+        ``max_side``: a JPEG by the decoder itself (k = 2, 4 or 8, so an
+        8000 x 8000 JPEG never exists in memory at full size), other formats
+        by averaging k x k blocks as they leave the decoder. Reduced pixel
+        ``i`` covers full pixels ``[i*k, (i+1)*k)``; ``scale = k`` maps back.
 
     Returns
     -------
     ImageData
         ``pixels`` as (rows, cols) or (rows, cols, 3|4) RGB(A), uint8 or uint16,
-        turned upright by the EXIF orientation tag.
+        turned upright by the EXIF orientation tag; ``scale``, ``full_shape``
+        (upright) and ``bit_depth``. 16-bit photos keep their 16 bits, except a
+        16-bit colour photo reduced while decoding that uses its range (see
+        Notes).
 
     Raises
     ------
     ImageReadError
-        If the file is missing, empty, truncated, not a supported image, or
-        unreadable.
+        If the file is missing, a folder, empty, truncated or corrupt, not a
+        PNG, JPEG, TIFF or BMP, unreadable, or larger than 200 million pixels;
+        the message is one line that starts with the path.
+    ParameterError
+        If ``max_side`` is not a positive number.
+
+    Notes
+    -----
+    Peak memory beyond the reduced pixels, for a photo reduced while
+    decoding: a JPEG about 1/64 of its full size; PNG, TIFF and BMP one full
+    decode inside Pillow (4 bytes a pixel for colour, 1 or 2 for gray). Only
+    OpenCV decodes 16-bit colour, at 12 bytes a pixel, so a reduced 16-bit
+    colour photo is read through Pillow's 8 bits when it reaches 64 in them
+    (a photo that uses its range loses nothing the reduced pixels keep), and
+    through OpenCV only when it is darker.
     """
     from rockscan._imageio import read_image as _read
 

@@ -1,40 +1,51 @@
 """Pictures for people: a classified photo, a library's shapes (PNG via matplotlib).
 
 Plotting is an edge of the pipeline: these functions take results and write
-files; nothing in the stages imports them.
+files; nothing in the stages imports them. Figures are made with
+:class:`matplotlib.figure.Figure` directly, not pyplot, so that plotting leaves
+no global state behind (no backend switch, no open figures).
 """
 
 from __future__ import annotations
 
 import os
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from rockscan.errors import ParameterError
 from rockscan.information import information_face_cartesian
-from rockscan.polar import radii_to_xy, rowcol_from_xy
+from rockscan.polar import radii_to_xy, rotate_radii, rowcol_from_xy
 
 if TYPE_CHECKING:
+    from matplotlib.figure import Figure
     from numpy.typing import NDArray
 
     from rockscan.library import Library
     from rockscan.pipeline import RockResult
 
-__all__ = ["library_outline_rowcol", "plot_classification", "plot_library"]
+__all__ = ["classification_figure", "library_outline_rowcol", "plot_classification", "plot_library"]
 
-
-def _pyplot():
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    return plt
+_OUTLINE = "#ff3b30"
+_SHAPE = "#30d158"
+_CENTROID = "#ffd60a"
 
 
 def library_outline_rowcol(library: Library, rock: RockResult) -> NDArray[np.float64]:
-    """The matched library shape drawn over a rock: turned by the found angle,
-    scaled to the rock's mean radius and centred on its centroid, (row, col)."""
+    """The matched library shape as drawn over a rock.
+
+    Parameters
+    ----------
+    library : Library
+    rock : RockResult
+
+    Returns
+    -------
+    outline : (n_angles + 1, 2) ndarray of float
+        Closed outline, (row, col) in photo pixels: the nearest library shape
+        turned by the found angle, scaled to the rock's mean radius and centred
+        on its centroid.
+    """
     k = library.index(rock.match.nearest)
     radii = library.radii[k] * float(np.mean(rock.radii))
     xy = radii_to_xy(radii, rock.match.angle_deg)
@@ -48,100 +59,280 @@ def plot_classification(
     path: str | os.PathLike[str],
     *,
     title: str | None = None,
+    scale: float = 1.0,
 ) -> None:
-    """Draw a classified photo: outline, centroid, matched shape, information face.
+    """Draw a classified photo to a file; see :func:`classification_figure`.
 
     Parameters
     ----------
-    pixels : ndarray
-        The photo as read.
-    rocks : list of RockResult
-        From :func:`rockscan.pipeline.classify_image`.
-    library : Library
+    pixels, rocks, library, title, scale
+        As for :func:`classification_figure`.
     path : path-like
-        PNG file to write.
-    title : str, optional
+        Image file to write; its suffix picks the format (PNG, PDF, SVG, JPEG).
+
+    Raises
+    ------
+    ParameterError
+        If the file cannot be written or its suffix names no image format.
     """
-    plt = _pyplot()
-    fig, (ax_photo, ax_face) = plt.subplots(1, 2, figsize=(11, 5), gridspec_kw={"width_ratios": [1.6, 1]})
-    shown = np.asarray(pixels)
-    if shown.dtype == np.uint16:
-        shown = (shown / 257).astype(np.uint8)
-    ax_photo.imshow(shown, cmap="gray" if shown.ndim == 2 else None)
+    _save(classification_figure(pixels, rocks, library, title=title, scale=scale), path)
+
+
+def classification_figure(
+    pixels: NDArray[np.generic],
+    rocks: list[RockResult],
+    library: Library,
+    *,
+    title: str | None = None,
+    scale: float = 1.0,
+) -> Figure:
+    """A classified photo: outlines, centroids, matched shapes, faces, distances.
+
+    Panels, in the order of ``figure.axes``: the whole photo with every rock's
+    outline, centroid and verdict; a close view of the main rock with the
+    matched library shape drawn over it at the found angle and scale; the
+    information face of the main rock; the matched shape's face turned by that
+    angle, on the same colour scale; the colour bar; and the distance to every
+    library shape at its best rotation (the paper's outWeights). A library of
+    plain radii faces shows the two radii curves instead of the faces.
+
+    Parameters
+    ----------
+    pixels : (rows, cols) or (rows, cols, 3|4) ndarray
+        The photo as read (uint8 or uint16), possibly reduced.
+    rocks : list of RockResult
+        From :func:`rockscan.pipeline.classify_image`, main rock first; outlines
+        in full-resolution photo pixels.
+    library : Library
+    title : str, optional
+    scale : float
+        Full-resolution pixels per pixel of ``pixels`` (the ``scale`` of
+        :func:`rockscan.io.read_image`), so that outlines land right on a photo
+        read reduced.
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+    """
+    from matplotlib.figure import Figure
+
+    if not (isinstance(scale, (int, float)) and np.isfinite(scale) and scale > 0):
+        raise ParameterError(f"scale must be a positive number, got {scale!r}")
+    shown = _displayable(pixels)
+    # A fixed layout: a layout engine would cost as much as drawing the figure.
+    fig = Figure(figsize=(12, 9))
+    ax_photo = fig.add_axes((0.01, 0.44, 0.48, 0.51))
+    ax_zoom = fig.add_axes((0.51, 0.44, 0.48, 0.51))
+    ax_face = fig.add_axes((0.04, 0.13, 0.2, 0.267))
+    ax_lib = fig.add_axes((0.285, 0.13, 0.2, 0.267))
+    ax_bar = fig.add_axes((0.09, 0.05, 0.35, 0.018))
+    ax_dist = fig.add_axes((0.665, 0.06, 0.32, 0.34))
+    rows, cols = shown.shape[:2]
+    # Reduced pixel i covers photo pixels [i*scale, (i+1)*scale): centres at integers.
+    extent = (-0.5, cols * scale - 0.5, rows * scale - 0.5, -0.5)
+    cmap = "gray" if shown.ndim == 2 else None
+    for ax in (ax_photo, ax_zoom):
+        ax.imshow(shown, cmap=cmap, extent=extent, interpolation="antialiased")
+        ax.set_facecolor("#3a3a3c")
+        ax.set_xticks([])
+        ax.set_yticks([])
     for rock in rocks:
-        contour = rock.outline.contour_rowcol
-        ax_photo.plot(
-            contour[:, 1],
-            contour[:, 0],
-            "-",
-            color="#ff3b30",
-            lw=1.2,
-            label="outline" if rock.index == 0 else None,
-        )
-        shape = library_outline_rowcol(library, rock)
-        ax_photo.plot(
-            shape[:, 1],
-            shape[:, 0],
-            "--",
-            color="#34c759",
-            lw=1.2,
-            label="library shape" if rock.index == 0 else None,
-        )
-        cx, cy = rock.centroid_xy
-        ax_photo.plot(
-            [cx], [cy], "+", color="#ffcc00", ms=10, mew=2, label="centroid" if rock.index == 0 else None
-        )
-        verdict = rock.match.match or f"({rock.match.nearest})"
-        ax_photo.annotate(
-            f"{verdict}\nMScore {rock.match.mscore:.2f}  {rock.match.angle_deg:.1f}°",
-            (cx, cy),
-            xytext=(6, 6),
-            textcoords="offset points",
-            color="white",
-            fontsize=8,
-            bbox={"boxstyle": "round", "fc": "black", "alpha": 0.55, "lw": 0},
+        _draw_rock(
+            ax_photo, rock, library, label=rock.index == 0, shape=len(rocks) == 1, small=len(rocks) > 6
         )
     ax_photo.set_title(title or "rockscan classify", fontsize=10)
-    ax_photo.axis("off")
-    if rocks:
-        ax_photo.legend(loc="lower right", fontsize=7, framealpha=0.7)
-        config = library.face_config.with_(grid="cartesian", cartesian_size=160)
-        face = information_face_cartesian(rocks[0].radii, config) if config.kind != "radii" else None
-        if face is not None:
-            image = ax_face.imshow(face, cmap="magma", extent=(-1, 1, -1, 1))
-            fig.colorbar(image, ax=ax_face, fraction=0.046, label="bits")
-            ax_face.set_title("information face of the main rock", fontsize=10)
-        else:
-            theta = np.linspace(0, 360, rocks[0].radii.size, endpoint=False)
-            ax_face.plot(theta, rocks[0].radii / rocks[0].radii.mean())
-            ax_face.set_xlabel("theta (deg)")
-            ax_face.set_ylabel("radius / mean")
-            ax_face.set_title("radii of the main rock", fontsize=10)
+    if not rocks:
+        for ax in (ax_zoom, ax_face, ax_lib, ax_bar, ax_dist):
+            ax.axis("off")
+        ax_zoom.text(0.5, 0.5, "no rock found", ha="center", va="center", transform=ax_zoom.transAxes)
+        return fig
+    main = rocks[0]
+    _draw_rock(ax_zoom, main, library, label=True, shape=True, annotate=False)
+    _zoom_to(ax_zoom, main, library)
+    m = main.match
+    verdict = m.match if m.match else f"no match (nearest {m.nearest})"
+    modulo = f" (mod {360 / m.symmetry:g}°)" if m.symmetry > 1 else ""
+    ax_zoom.set_title(
+        f"rock {main.index}: {verdict}\nMScore {m.mscore:.3f}, distance {m.distance:.3g}, "
+        f"angle {m.angle_deg:.1f}°{modulo}",
+        fontsize=10,
+    )
+    ax_zoom.legend(loc="lower right", fontsize=7, framealpha=0.75)
+    _draw_faces(fig, ax_face, ax_lib, ax_bar, main, library)
+    _draw_distances(ax_dist, main)
+    return fig
+
+
+def _save(fig: Figure, path: str | os.PathLike[str]) -> None:
+    folder = os.path.dirname(os.path.abspath(os.fspath(path)))
+    if not os.path.isdir(folder):
+        # Fail before drawing: drawing costs most of the time.
+        raise ParameterError(f"{os.fspath(path)}: cannot write the plot (no folder {folder})")
+    try:
+        fig.savefig(path, dpi=100)
+    except (OSError, ValueError) as exc:
+        raise ParameterError(f"{os.fspath(path)}: cannot write the plot ({_first_line(exc)})") from None
+
+
+def _displayable(pixels: NDArray[np.generic]) -> NDArray[np.uint8]:
+    arr = np.asarray(pixels)
+    if arr.ndim == 3 and arr.shape[2] == 1:
+        arr = arr[..., 0]
+    if arr.ndim not in (2, 3) or (arr.ndim == 3 and arr.shape[2] not in (3, 4)) or arr.size == 0:
+        raise ParameterError(f"pixels must be a gray, RGB or RGBA photo, got shape {arr.shape}")
+    if arr.dtype == np.uint8:
+        out = arr
+    elif arr.dtype.kind in "ui":
+        out = (arr.astype(np.float64) / np.iinfo(arr.dtype).max * 255).round().astype(np.uint8)
     else:
-        ax_face.axis("off")
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
+        out = (np.clip(np.nan_to_num(arr.astype(np.float64)), 0, 1) * 255).round().astype(np.uint8)
+    # An alpha channel that cuts the rock out would hide the ground: show colour only.
+    return out[..., :3] if out.ndim == 3 else out
+
+
+def _draw_rock(
+    ax: Any,
+    rock: RockResult,
+    library: Library,
+    *,
+    label: bool,
+    shape: bool,
+    annotate: bool = True,
+    small: bool = False,
+) -> None:
+    contour = rock.outline.contour_rowcol
+    closed = np.vstack([contour, contour[:1]])
+    ax.plot(closed[:, 1], closed[:, 0], "-", color=_OUTLINE, lw=1.4, label="outline" if label else None)
+    if shape:
+        drawn = library_outline_rowcol(library, rock)
+        ax.plot(
+            drawn[:, 1],
+            drawn[:, 0],
+            "--",
+            color=_SHAPE,
+            lw=1.4,
+            label=f"library shape '{rock.match.nearest}'" if label else None,
+        )
+    cx, cy = rock.centroid_xy
+    ax.plot([cx], [cy], "+", color=_CENTROID, ms=11, mew=2, label="centroid" if label else None)
+    if rock.match.symmetry != 0:
+        # The found angle: the library shape's +x axis, turned counter-clockwise on screen.
+        reach = 0.6 * float(np.mean(rock.radii))
+        angle = np.deg2rad(rock.match.angle_deg)
+        ax.plot(
+            [cx, cx + reach * np.cos(angle)],
+            [cy, cy - reach * np.sin(angle)],
+            "-",
+            color=_CENTROID,
+            lw=1,
+            label="angle" if label else None,
+        )
+    if annotate:
+        verdict = rock.match.match or f"({rock.match.nearest})"
+        ax.annotate(
+            f"{rock.index}" if small else f"{rock.index}: {verdict}\nMScore {rock.match.mscore:.2f}",
+            (cx, cy),
+            xytext=(5, 5),
+            textcoords="offset points",
+            color="white",
+            fontsize=7,
+            bbox={"boxstyle": "round", "fc": "black", "alpha": 0.55, "lw": 0},
+        )
+
+
+def _zoom_to(ax: Any, rock: RockResult, library: Library) -> None:
+    points = np.vstack([rock.outline.contour_rowcol, library_outline_rowcol(library, rock)])
+    lo, hi = points.min(axis=0), points.max(axis=0)
+    half = 0.65 * float(np.max(hi - lo)) + 2.0
+    center = (lo + hi) / 2
+    ax.set_xlim(center[1] - half, center[1] + half)
+    ax.set_ylim(center[0] + half, center[0] - half)
+
+
+def _draw_faces(fig: Any, ax_face: Any, ax_lib: Any, ax_bar: Any, rock: RockResult, library: Library) -> None:
+    config = library.face_config
+    k = library.index(rock.match.nearest)
+    turned = rotate_radii(library.radii[k], rock.match.angle_deg)
+    if config.kind == "radii":
+        theta = np.linspace(0.0, 360.0, rock.radii.size, endpoint=False)
+        ax_face.plot(theta, rock.radii / rock.radii.mean(), color=_OUTLINE, lw=1.2, label="rock")
+        ax_face.plot(theta, turned / turned.mean(), "--", color=_SHAPE, lw=1.2, label=rock.match.nearest)
+        ax_face.set_xlabel("theta (deg)", fontsize=8)
+        ax_face.set_ylabel("radius / mean", fontsize=8)
+        ax_face.legend(fontsize=7)
+        ax_face.set_title("radii (the face)", fontsize=9)
+        ax_face.set_position((0.06, 0.08, 0.42, 0.32))
+        ax_lib.axis("off")
+        ax_bar.axis("off")
+        return
+    cartesian = config.with_(grid="cartesian", cartesian_size=160)
+    faces = [information_face_cartesian(rock.radii, cartesian), information_face_cartesian(turned, cartesian)]
+    top = max(float(f.max()) for f in faces)
+    span = config.ray_length
+    titles = ["information face of the rock", f"'{rock.match.nearest}' at {rock.match.angle_deg:.1f}°"]
+    for ax, face, text in zip((ax_face, ax_lib), faces, titles, strict=True):
+        image = ax.imshow(face, cmap="magma", vmin=0.0, vmax=top, extent=(-span, span, -span, span))
+        ax.set_title(text, fontsize=9)
+        ax.tick_params(labelsize=7)
+    fig.colorbar(image, cax=ax_bar, orientation="horizontal", label="H·q (bits)")
+
+
+def _draw_distances(ax: Any, rock: RockResult) -> None:
+    m = rock.match
+    order = np.argsort(m.distances)[::-1]
+    names = [m.names[i] for i in order]
+    values = m.distances[order]
+    colors = [_SHAPE if name == m.nearest else "#8e8e93" for name in names]
+    bars = ax.barh(np.arange(len(names)), values, color=colors)
+    best = names.index(m.nearest)
+    ax.bar_label(bars, labels=[f"{v:.3g}" if i == best else "" for i, v in enumerate(values)], fontsize=7)
+    ax.set_yticks(np.arange(len(names)), names, fontsize=7)
+    ax.axvline(float(np.mean(m.distances)), color="#1c1c1e", lw=0.8, ls=":", label="mean (MScore's base)")
+    ax.set_xlabel("distance at best rotation (outWeight)", fontsize=8)
+    ax.tick_params(axis="x", labelsize=7)
+    ax.legend(fontsize=7, loc="lower right")
+    ax.set_title("distance to every library shape", fontsize=9)
 
 
 def plot_library(library: Library, path: str | os.PathLike[str], *, columns: int = 5) -> None:
-    """Draw every shape of a library with its name, symmetry and interest."""
-    plt = _pyplot()
+    """Draw every shape of a library with its name, symmetry and interest.
+
+    Parameters
+    ----------
+    library : Library
+    path : path-like
+        Image file to write; its suffix picks the format.
+    columns : int
+        Shapes per row.
+
+    Raises
+    ------
+    ParameterError
+        If the file cannot be written or ``columns`` is not positive.
+    """
+    if isinstance(columns, bool) or not isinstance(columns, int) or columns < 1:
+        raise ParameterError(f"columns must be a positive integer, got {columns!r}")
+    from matplotlib.figure import Figure
+
     n = len(library)
     rows = (n + columns - 1) // columns
-    fig, axes = plt.subplots(rows, columns, figsize=(2.2 * columns, 2.4 * rows), squeeze=False)
+    fig = Figure(figsize=(2.2 * columns, 2.4 * rows), layout="constrained")
+    axes = fig.subplots(rows, columns, squeeze=False)
     for ax, name, radii, order, interest in zip(
         axes.flat, library.names, library.radii, library.symmetry, library.interest, strict=False
     ):
         xy = radii_to_xy(radii)
         ax.fill(xy[:, 0], xy[:, 1], color="#8e8e93", ec="#1c1c1e", lw=1)
-        ax.plot([0], [0], "+", color="#ff3b30")
+        ax.plot([0], [0], "+", color=_OUTLINE)
         sym = "circle" if order == 0 else f"{order}-fold"
         ax.set_title(f"{name}\n{sym}, interest {interest:g}", fontsize=8)
         ax.set_aspect("equal")
         ax.axis("off")
     for ax in list(axes.flat)[n:]:
         ax.axis("off")
-    fig.tight_layout()
-    fig.savefig(path, dpi=100)
-    plt.close(fig)
+    _save(fig, path)
+
+
+def _first_line(exc: BaseException) -> str:
+    text = str(exc).strip().splitlines()
+    return text[0] if text else type(exc).__name__

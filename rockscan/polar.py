@@ -234,6 +234,28 @@ def rotate_radii(radii: ArrayLike, angle_deg: float) -> NDArray[np.float64]:
     return np.fft.irfft(spectrum * phase, n=n)
 
 
+def resample_radii(radii: ArrayLike, n_angles: int) -> NDArray[np.float64]:
+    """Radii sampled at other equal angles, by periodic linear interpolation.
+
+    Parameters
+    ----------
+    radii : (n,) array_like of float
+        Radii at ``2*pi*i/n``, i = 0 .. n-1.
+    n_angles : int
+        Number of rays wanted.
+
+    Returns
+    -------
+    resampled : (n_angles,) ndarray of float
+        Radii at :func:`polar_angles` ``(n_angles)``.
+    """
+    radii = np.asarray(radii, dtype=np.float64)
+    if radii.ndim != 1 or radii.size < 3:
+        raise ParameterError("radii must be a 1-D array of at least 3 values")
+    position = np.arange(_check_n_angles(n_angles)) * radii.size / n_angles
+    return np.interp(position, np.arange(radii.size), radii, period=radii.size)
+
+
 def symmetry_order(radii: ArrayLike, *, tol: float = 1e-4, max_order: int = 36) -> int:
     """Order of rotational symmetry of an outline, read from its radii.
 

@@ -12,13 +12,15 @@ from __future__ import annotations
 
 import io as _io
 import math
+import os
 from dataclasses import asdict, dataclass, field, replace
+from pathlib import Path
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from rockscan.errors import ParameterError
-from rockscan.polar import polar_angles, polygon_centroid_xy
+from rockscan.polar import polar_angles, polygon_centroid_xy, resample_radii, symmetry_order
 from rockscan.superformula import SuperformulaParams
 
 __all__ = ["RenderConfig", "RenderedPhoto", "random_superformula", "render_photo", "render_scene"]
@@ -88,11 +90,16 @@ class RenderConfig:
     bit_depth: int = 8
 
     def __post_init__(self) -> None:
-        if int(self.rows) < 16 or int(self.cols) < 16:
+        for name in ("rows", "cols", "pebbles", "outline_points", "bit_depth"):
+            value = getattr(self, name)
+            if isinstance(value, bool) or not isinstance(value, (int, np.integer)):
+                raise ParameterError(f"{name} must be an integer, got {value!r}")
+        if self.rows < 16 or self.cols < 16:
             raise ParameterError("rows and cols must be at least 16")
-        if not 0.0005 <= self.area_fraction <= 0.8:
-            raise ParameterError("area_fraction must be between 0.0005 and 0.8")
+        if self.pebbles < 0:
+            raise ParameterError("pebbles must be 0 or more")
         for name in (
+            "area_fraction",
             "contrast",
             "rock_texture",
             "ground_texture",
@@ -103,18 +110,41 @@ class RenderConfig:
             "outline_noise",
         ):
             value = getattr(self, name)
+            if isinstance(value, bool) or not isinstance(value, (int, float, np.number)):
+                raise ParameterError(f"{name} must be a number, got {value!r}")
             if not (math.isfinite(value) and value >= 0):
-                raise ParameterError(f"{name} must be a non-negative number")
+                raise ParameterError(f"{name} must be a non-negative number, got {value!r}")
+        if not 0.0005 <= self.area_fraction <= 0.8:
+            raise ParameterError(
+                "area_fraction must be between 0.0005 and 0.8 (the rock's share of the frame)"
+            )
         if self.shadow > 1 or self.gradient >= 2:
             raise ParameterError("shadow must be at most 1 and gradient below 2")
-        if self.jpeg_quality is not None and not 1 <= int(self.jpeg_quality) <= 100:
+        if self.jpeg_quality is not None and (
+            isinstance(self.jpeg_quality, bool)
+            or not isinstance(self.jpeg_quality, (int, np.integer))
+            or not 1 <= self.jpeg_quality <= 100
+        ):
             raise ParameterError("jpeg_quality must be between 1 and 100")
         if self.bit_depth not in (8, 16):
             raise ParameterError("bit_depth must be 8 or 16")
         if self.bit_depth == 16 and self.jpeg_quality is not None:
             raise ParameterError("JPEG photos are 8 bits; use bit_depth=8 with jpeg_quality")
-        if int(self.outline_points) < 8:
+        if self.outline_points < 8:
             raise ParameterError("outline_points must be at least 8")
+        if self.angle_deg is not None and not (
+            isinstance(self.angle_deg, (int, float, np.number))
+            and not isinstance(self.angle_deg, bool)
+            and math.isfinite(self.angle_deg)
+        ):
+            raise ParameterError(f"angle_deg must be a finite number or None, got {self.angle_deg!r}")
+        if self.center_xy is not None:
+            try:
+                x, y = (float(v) for v in self.center_xy)
+            except (TypeError, ValueError):
+                raise ParameterError(f"center_xy must be (x, y) or None, got {self.center_xy!r}") from None
+            if not (math.isfinite(x) and math.isfinite(y)):
+                raise ParameterError(f"center_xy must be finite, got {self.center_xy!r}")
 
     def with_(self, **changes: object) -> RenderConfig:
         """A copy with some settings changed."""
@@ -130,10 +160,15 @@ class RenderedPhoto:
     pixels : ndarray of uint8 or uint16
         The photo as a reader sees it (after JPEG compression, if any).
     truth : dict
-        JSON-able ground truth: shape, params, angle_deg, scale_px (mean radius
-        of the outline in pixels), center_xy (the shape's origin),
-        centroid_xy (the rock's area centroid), rock_lighter, rocks (for
-        scenes), and every render setting.
+        JSON-able ground truth. Per rock: ``shape`` (name), ``params``,
+        ``angle_deg`` (counter-clockwise, the interface's convention),
+        ``scale_px`` (mean radius of the outline about its origin, pixels),
+        ``center_xy`` (the shape's origin), ``centroid_xy`` (the rock's area
+        centroid, (col, row)), ``area_px``, ``area_fraction``,
+        ``rock_lighter`` and ``symmetry`` (order of rotational symmetry of the
+        noise-free outline; 0 for a circle). :func:`render_photo` puts the
+        rock's keys at the top level; both functions list the rocks under
+        ``rocks`` and every render setting under ``render``.
     """
 
     pixels: NDArray[np.generic]
@@ -144,9 +179,15 @@ class RenderedPhoto:
     def encode(self, suffix: str = ".png") -> bytes:
         """The photo as file bytes (``.png``, ``.jpg``, ``.tif`` or ``.bmp``).
 
-        A JPEG is compressed from the uncompressed render at ``jpeg_quality``,
-        so it decodes to exactly :attr:`pixels`; other formats store
-        :attr:`pixels` losslessly.
+        Other formats store :attr:`pixels` losslessly. A JPEG is compressed
+        from the uncompressed render at ``jpeg_quality``, so it decodes to
+        exactly :attr:`pixels` when the photo was rendered with a
+        ``jpeg_quality``; without one it is compressed at quality 95.
+
+        Raises
+        ------
+        ParameterError
+            For other suffixes, and for 16-bit photos as JPEG or BMP (8-bit formats).
         """
 
         suffix = suffix.lower()
@@ -170,6 +211,15 @@ class RenderedPhoto:
         buf = _io.BytesIO()
         _pil_image(self.pixels).save(buf, format=formats[suffix])
         return buf.getvalue()
+
+    def save(self, path: str | os.PathLike[str]) -> None:
+        """Write the photo to ``path``, in the format its suffix names (see :meth:`encode`)."""
+        path = Path(path)
+        data = self.encode(path.suffix)
+        try:
+            path.write_bytes(data)
+        except OSError as exc:
+            raise ParameterError(f"{path}: cannot write the photo ({exc.strerror or exc})") from None
 
 
 def random_superformula(rng: np.random.Generator | int | None = None) -> SuperformulaParams:
@@ -240,10 +290,33 @@ def render_scene(
 ) -> RenderedPhoto:
     """Draw several rocks that do not overlap; ``truth["rocks"]`` lists them.
 
-    Each rock takes ``config.area_fraction / len(shapes)`` of the frame.
+    Parameters
+    ----------
+    shapes : list of SuperformulaParams or (n,) array_like of float
+        One outline per rock (see :func:`render_photo`). An empty list draws
+        the bare ground: a photo with no rock.
+    config : RenderConfig, optional
+        ``angle_deg`` turns every rock alike; ``center_xy`` is ignored (rocks
+        are placed at random, apart from each other).
+    rng : numpy.random.Generator, int or None
+    names : list of str, optional
+        One name per shape, recorded in the truth.
+
+    Returns
+    -------
+    RenderedPhoto
+        Each rock takes ``config.area_fraction / len(shapes)`` of the frame.
+
+    Raises
+    ------
+    ParameterError
+        If the rocks cannot be placed without overlap, or ``names`` does not
+        match ``shapes``.
     """
     config = config or RenderConfig()
     rng = np.random.default_rng(rng)
+    if names is not None and len(names) != len(shapes):
+        raise ParameterError(f"names must give one name per shape ({len(shapes)}), got {len(names)}")
     scene = _Scene(config, rng)
     rocks = []
     for i, shape in enumerate(shapes):
@@ -296,10 +369,16 @@ class _Scene:
             given = np.asarray(shape, dtype=np.float64)
             if given.ndim != 1 or given.size < 8:
                 raise ParameterError("shape radii must be a 1-D array of at least 8 values")
-            radii = _periodic_resample(given, n_points)
+            radii = resample_radii(given, n_points)
             params = None
-        if not np.all(np.isfinite(radii)) or np.any(radii <= 0):
-            raise ParameterError("the shape's outline is unbounded or degenerate; it cannot be drawn")
+        with np.errstate(invalid="ignore"):
+            # A pole the rays straddle shows as an absurd spike rather than inf.
+            spike = radii > 1e4 * np.nanmedian(radii)
+        if not np.all(np.isfinite(radii)) or np.any(radii <= 0) or np.any(spike):
+            raise ParameterError(
+                "the shape's outline is unbounded or degenerate; choose parameters whose curve is closed"
+            )
+        symmetry = symmetry_order(radii)
         if cfg.outline_noise > 0:
             radii = radii * np.maximum(1.0 + rng.normal(0.0, cfg.outline_noise, radii.size), 0.05)
         unit_area = 0.5 * float(np.mean(radii**2)) * 2.0 * math.pi
@@ -320,13 +399,19 @@ class _Scene:
         if center_xy is None:
             if lo_x > hi_x or lo_y > hi_y:
                 raise ParameterError("the rock does not fit in the frame; lower area_fraction")
+            # The rock with a gap around it, drawn once in a window of its own;
+            # each try only shifts the window over the rocks already placed.
+            gap = int(scale * 0.15) + 3
+            left, top = math.floor(x.min()) - gap - 1, math.floor(-y.max()) - gap - 1
+            height, width = math.ceil(-y.min()) - top + gap + 2, math.ceil(x.max()) - left + gap + 2
+            keep_out = _dilate(_polygon_mask(x - left, -y - top, height, width) > 0.01, gap)
             for _ in range(200):
                 cx, cy = float(rng.uniform(lo_x, hi_x)), float(rng.uniform(lo_y, hi_y))
-                mask = _polygon_mask(cx + x, cy - y, cfg.rows, cfg.cols)
-                if not avoid or not np.any(_dilate(mask > 0.01, int(scale * 0.15) + 3) & self.taken):
+                if not avoid or not _overlaps(self.taken, keep_out, round(cy) + top, round(cx) + left):
                     break
             else:
                 raise ParameterError("could not place the rocks without overlap; lower area_fraction")
+            mask = _polygon_mask(cx + x, cy - y, cfg.rows, cfg.cols)
         else:
             cx, cy = map(float, center_xy)
             mask = _polygon_mask(cx + x, cy - y, cfg.rows, cfg.cols)
@@ -344,6 +429,7 @@ class _Scene:
             "area_px": float(mask.sum()),
             "area_fraction": float(mask.sum()) / (cfg.rows * cfg.cols),
             "rock_lighter": self.lighter,
+            "symmetry": symmetry,
         }
 
     def finish(self) -> tuple[NDArray[np.generic], NDArray[np.generic]]:
@@ -353,67 +439,78 @@ class _Scene:
         ground_level = rng.uniform(0.35, 0.6)
         rock_level = ground_level + cfg.contrast if self.lighter else ground_level - cfg.contrast
         rock_level = float(np.clip(rock_level, 0.03, 0.97))
-        ground_tint = 1.0 + rng.uniform(-0.08, 0.08, channels)
-        rock_tint = 1.0 + rng.uniform(-0.15, 0.15, channels)
-        ground = ground_level + cfg.ground_texture * _texture(rows, cols, rng)
+        ground_tint = (1.0 + rng.uniform(-0.08, 0.08, channels)).astype(np.float32)
+        rock_tint = (1.0 + rng.uniform(-0.15, 0.15, channels)).astype(np.float32)
+        ground = np.float32(ground_level) + np.float32(cfg.ground_texture) * _texture(rows, cols, rng)
         if cfg.pebbles:
             ground = self._pebbles(ground)
-        rock = rock_level + cfg.rock_texture * _texture(rows, cols, rng, scales=(2, 6))
         if cfg.shadow > 0:
-            ground = ground * (1.0 - cfg.shadow * self._shadow())
-        alpha = self.coverage[..., None]
-        image = ground[..., None] * ground_tint * (1 - alpha) + rock[..., None] * rock_tint * alpha
+            ground *= 1.0 - np.float32(cfg.shadow) * self._shadow()
+        image = ground[..., None] * ground_tint
+        covered = np.flatnonzero(self.coverage.any(axis=1)), np.flatnonzero(self.coverage.any(axis=0))
+        if covered[0].size:
+            # Rock texture and blending only where rocks are: a fraction of the frame.
+            box = np.s_[covered[0][0] : covered[0][-1] + 1, covered[1][0] : covered[1][-1] + 1]
+            alpha = self.coverage[box][..., None]
+            height, width = alpha.shape[:2]
+            texture = _texture(height, width, rng, scales=(2, 6))
+            rock = np.float32(rock_level) + np.float32(cfg.rock_texture) * texture
+            image[box] += alpha * (rock[..., None] * rock_tint - image[box])
         if cfg.gradient > 0:
             direction = rng.uniform(0.0, 2.0 * math.pi)
-            rr, cc = np.mgrid[0:rows, 0:cols]
-            ramp = (cc - cols / 2) * math.cos(direction) + (rr - rows / 2) * math.sin(direction)
-            ramp = ramp / max(np.abs(ramp).max(), 1.0)
-            image = image * (1.0 + 0.5 * cfg.gradient * ramp)[..., None]
+            dx, dy = math.cos(direction), math.sin(direction)
+            # The ramp is the sum of a column and a row term; its largest value
+            # lies at a corner.
+            col_term = ((np.arange(cols) - cols / 2) * dx).astype(np.float32)
+            row_term = ((np.arange(rows) - rows / 2) * dy).astype(np.float32)
+            peak = max(abs(cols / 2 * dx) + abs(rows / 2 * dy), 1.0)
+            light = 1.0 + np.float32(0.5 * cfg.gradient / peak) * (row_term[:, None] + col_term[None, :])
+            image *= light[..., None]
         if cfg.blur > 0:
             import cv2
 
-            image = cv2.GaussianBlur(image.astype(np.float32), (0, 0), cfg.blur).reshape(image.shape)
+            image = cv2.GaussianBlur(image, (0, 0), cfg.blur).reshape(image.shape)
         if cfg.noise > 0:
-            image = image + rng.normal(0.0, cfg.noise, image.shape)
-        image = np.clip(image, 0.0, 1.0)
+            image += np.float32(cfg.noise) * rng.standard_normal(image.shape, dtype=np.float32)
         top = 65535 if cfg.bit_depth == 16 else 255
-        raw = np.round(image * top).astype(np.uint16 if cfg.bit_depth == 16 else np.uint8)
+        image = np.clip(image, 0.0, 1.0, out=image)
+        image *= np.float32(top)
+        raw = np.rint(image, out=image).astype(np.uint16 if cfg.bit_depth == 16 else np.uint8)
         raw = raw[..., 0] if channels == 1 else raw
         if cfg.jpeg_quality is None:
             return raw, raw
         return _jpeg_decode(_jpeg_bytes(raw, cfg.jpeg_quality)), raw
 
-    def _pebbles(self, ground: NDArray[np.float64]) -> NDArray[np.float64]:
+    def _pebbles(self, ground: NDArray[np.float32]) -> NDArray[np.float32]:
         import cv2
 
         cfg, rng = self.config, self.rng
         out = ground.copy()
         size = math.sqrt(cfg.rows * cfg.cols)
+        mean = float(ground.mean())
         for _ in range(cfg.pebbles):
             center = (int(rng.uniform(0, cfg.cols)), int(rng.uniform(0, cfg.rows)))
             axes = (
                 max(1, int(rng.uniform(0.003, 0.012) * size)),
                 max(1, int(rng.uniform(0.003, 0.012) * size)),
             )
-            level = float(np.clip(ground.mean() + rng.normal(0.0, cfg.contrast * 0.5), 0.02, 0.98))
-            peb = np.zeros_like(out, dtype=np.uint8)
-            cv2.ellipse(peb, center, axes, float(rng.uniform(0, 180)), 0, 360, 1, -1, cv2.LINE_AA)
-            out = np.where(peb > 0, level, out)
+            level = float(np.clip(mean + rng.normal(0.0, cfg.contrast * 0.5), 0.02, 0.98))
+            angle = float(rng.uniform(0, 180))
+            cv2.ellipse(out, center, axes, angle, 0, 360, level, -1, cv2.LINE_8)
         return out
 
-    def _shadow(self) -> NDArray[np.float64]:
+    def _shadow(self) -> NDArray[np.float32]:
         import cv2
 
-        ys, _xs = np.nonzero(self.coverage > 0.5)
-        if ys.size == 0:
-            return np.zeros_like(self.coverage, dtype=np.float64)
-        radius = math.sqrt(ys.size / math.pi)
+        area = float(self.coverage.sum())
+        if area < 1.0:
+            return np.zeros_like(self.coverage)
+        radius = math.sqrt(area / math.pi)
         direction = self.rng.uniform(0.0, 2.0 * math.pi)
         shift = (0.15 * radius * math.cos(direction), 0.15 * radius * math.sin(direction))
         matrix = np.float32([[1, 0, shift[0]], [0, 1, shift[1]]])
         moved = cv2.warpAffine(self.coverage, matrix, (self.config.cols, self.config.rows))
-        soft = cv2.GaussianBlur(moved, (0, 0), max(1.0, 0.12 * radius))
-        return soft.astype(np.float64)
+        return cv2.GaussianBlur(moved, (0, 0), max(1.0, 0.12 * radius))
 
 
 def _polygon_mask(
@@ -442,23 +539,35 @@ def _polygon_mask(
 
 def _texture(
     rows: int, cols: int, rng: np.random.Generator, scales: tuple[int, ...] = (2, 8, 32)
-) -> NDArray[np.float64]:
+) -> NDArray[np.float32]:
     """Smooth random texture of unit standard deviation, summed over scales.
 
-    Each scale is drawn at a grid a few samples per blur width and enlarged, so
-    coarse texture costs no more than fine.
+    Scale ``s`` (pixels) is white noise on a grid of one sample per ``s``
+    pixels, blurred by one sample and enlarged by cubic interpolation: a smooth
+    field of correlation length ``s`` at the cost of ``rows*cols/s**2`` draws.
     """
     import cv2
 
     out = np.zeros((rows, cols), np.float32)
     for s in scales:
-        step = max(1, s // 2)
+        step = max(1, s)
         small = (max(2, -(-rows // step)), max(2, -(-cols // step)))
-        field_ = rng.normal(0.0, 1.0, small).astype(np.float32)
-        smooth = cv2.GaussianBlur(field_, (0, 0), s / step) if s / step >= 0.5 else field_
+        field_ = rng.standard_normal(small, dtype=np.float32)
+        smooth = cv2.GaussianBlur(field_, (0, 0), 1.0)
         big = cv2.resize(smooth, (cols, rows), interpolation=cv2.INTER_CUBIC)
         out += big / max(float(big.std()), 1e-9)
-    return (out / max(float(out.std()), 1e-9)).astype(np.float64)
+    out /= max(float(out.std()), 1e-9)
+    return out
+
+
+def _overlaps(taken: NDArray[np.bool_], window: NDArray[np.bool_], top: int, left: int) -> bool:
+    """Whether ``window``, placed with its corner at (top, left), meets ``taken``."""
+    rows, cols = taken.shape
+    r0, c0 = max(top, 0), max(left, 0)
+    r1, c1 = min(top + window.shape[0], rows), min(left + window.shape[1], cols)
+    if r1 <= r0 or c1 <= c0:
+        return False
+    return bool(np.any(taken[r0:r1, c0:c1] & window[r0 - top : r1 - top, c0 - left : c1 - left]))
 
 
 def _dilate(mask: NDArray[np.bool_], radius: int) -> NDArray[np.bool_]:
@@ -466,13 +575,6 @@ def _dilate(mask: NDArray[np.bool_], radius: int) -> NDArray[np.bool_]:
 
     kernel = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * radius + 1, 2 * radius + 1))
     return cv2.dilate(mask.astype(np.uint8), kernel) > 0
-
-
-def _periodic_resample(values: NDArray[np.float64], n: int) -> NDArray[np.float64]:
-    position = np.arange(n) * values.size / n
-    lo = np.floor(position).astype(np.int64)
-    frac = position - lo
-    return values[lo % values.size] * (1 - frac) + values[(lo + 1) % values.size] * frac
 
 
 def _pil_image(pixels: NDArray[np.generic]) -> object:

@@ -49,12 +49,10 @@ def match_cmd(
     as_json: bool,
 ) -> None:
     """Match an outline given as Superformula parameters or radii, without a photo."""
-    import numpy as np
-
-    from rockscan.errors import ParameterError
     from rockscan.io import read_radii
+    from rockscan.library import shape_radii
     from rockscan.match import match_radii
-    from rockscan.polar import polar_angles, recenter_radii, rotate_radii
+    from rockscan.polar import resample_radii, rotate_radii
     from rockscan.superformula import SuperformulaParams
 
     if (params_text is None) == (radii_path is None):
@@ -70,14 +68,11 @@ def match_cmd(
             ) from None
         if len(values) not in (5, 7):
             raise click.BadParameter("must be 5 or 7 comma-separated numbers", param_hint="--params")
-        radii = SuperformulaParams(*values).radii(polar_angles(n))
-        if not np.all(np.isfinite(radii)) or np.any(radii <= 0):
-            raise ParameterError("these parameters give an unbounded or degenerate outline")
-        radii, _ = recenter_radii(radii)
+        radii = shape_radii(SuperformulaParams(*values), n)
     else:
         radii = read_radii(radii_path)
         if radii.size != n:
-            radii = _resample(radii, n)
+            radii = resample_radii(radii, n)
     if rotate:
         radii = rotate_radii(radii, rotate)
     config = _match_config(method, metric, angle_metric, distance_cutoff, mscore_cutoff, no_scan)
@@ -93,16 +88,12 @@ def match_cmd(
         )
 
 
-def _resample(values: Any, n: int) -> Any:
-    import numpy as np
-
-    position = np.arange(n) * values.size / n
-    lo = np.floor(position).astype(int)
-    frac = position - lo
-    return values[lo % values.size] * (1 - frac) + values[(lo + 1) % values.size] * frac
-
-
 # ---------------------------------------------------------------- classify
+
+_COLUMNS = (
+    f"{'photo':<32} {'rock':>4}  {'match':<20} {'nearest':<20} {'MScore':>6} "
+    f"{'distance':>9} {'angle':>6}  {'centroid (x, y)':<18}"
+)
 
 
 @main.command("classify")
@@ -120,8 +111,8 @@ def _resample(values: Any, n: int) -> Any:
     "plot_path",
     type=click.Path(dir_okay=False),
     default=None,
-    help="Draw each photo with outline, centroid, matched shape and information face (PNG). "
-    "With several photos, the photo's name is added to the file name.",
+    help="Draw each photo with outline, centroid, matched shape, information face and distances "
+    "(PNG). With several photos, the photo's name is added to the file name.",
 )
 @_errors
 def classify(
@@ -139,21 +130,29 @@ def classify(
 ) -> None:
     """Find the rock in each photo and say which library shape it is closest to.
 
-    Exit status: 0 when every photo was classified, 1 when any could not be.
+    PHOTO is a PNG, JPEG, TIFF or BMP file (gray, RGB or RGBA; 8 or 16 bits).
+    A photo that cannot be classified gives an error line (with --json,
+    {"path": ..., "error": ...}) and the others are still processed.
+
+    Exit status: 0 when every photo was classified, 1 when any could not be,
+    2 for usage errors.
     """
+    from rockscan.errors import RockscanError
     from rockscan.pipeline import ClassifyConfig, classify_path
 
+    if plot_path is not None:
+        folder = os.path.dirname(os.path.abspath(plot_path))
+        if not os.path.isdir(folder):
+            raise click.BadParameter(f"folder {folder!r} does not exist", param_hint="--plot")
     lib = _load_library(library_path)
     config = ClassifyConfig(
         match=_match_config(method, metric, angle_metric, distance_cutoff, mscore_cutoff, no_scan)
     )
     failed = 0
+    targets = _plot_targets(plot_path, photos) if plot_path else {}
     if not as_json:
-        click.echo(
-            f"{'photo':<32} {'rock':>4}  {'match':<20} {'nearest':<20} {'MScore':>6} "
-            f"{'distance':>9} {'angle':>6}  {'centroid (x, y)':<18}"
-        )
-    for photo in photos:
+        click.echo(_COLUMNS)
+    for i, photo in enumerate(photos):
         result = classify_path(photo, lib, config, all_rocks=all_rocks)
         failed += not result.ok
         if as_json:
@@ -171,20 +170,37 @@ def classify(
                 )
         sys.stdout.flush()
         if plot_path and result.ok:
-            from rockscan.io import read_image
-            from rockscan.plot import plot_classification
-
-            target = plot_path if len(photos) == 1 else _suffixed(plot_path, photo)
-            image = read_image(photo)
-            plot_classification(image.pixels, list(result.rocks), lib, target, title=os.path.basename(photo))
+            try:
+                _plot(photo, result.rocks, lib, targets[i], config.segment.work_size)
+            except RockscanError as exc:
+                click.echo(f"rockscan: error: {exc}", err=True)
+                failed += 1
     sys.exit(1 if failed else 0)
+
+
+def _plot(photo: str, rocks: Any, lib: Any, target: str, work_size: int) -> None:
+    from rockscan.io import read_image
+    from rockscan.plot import plot_classification
+
+    # The plot needs no more detail than the segmentation saw: read reduced.
+    image = read_image(photo, max_side=2 * work_size)
+    plot_classification(
+        image.pixels, list(rocks), lib, target, title=os.path.basename(photo), scale=image.scale
+    )
+
+
+def _plot_targets(plot_path: str, photos: tuple[str, ...]) -> dict[int, str]:
+    """One plot file per photo: the given name for one photo, else the name plus
+    the photo's stem (and its position, if two photos share a stem)."""
+    if len(photos) == 1:
+        return {0: plot_path}
+    root, ext = os.path.splitext(plot_path)
+    stems = [os.path.splitext(os.path.basename(p))[0] for p in photos]
+    return {
+        i: f"{root}-{stem}{'-' + str(i) if stems.count(stem) > 1 else ''}{ext or '.png'}"
+        for i, stem in enumerate(stems)
+    }
 
 
 def _short(text: str, width: int) -> str:
     return text if len(text) <= width else "..." + text[-(width - 3) :]
-
-
-def _suffixed(path: str, photo: str) -> str:
-    root, ext = os.path.splitext(path)
-    stem = os.path.splitext(os.path.basename(photo))[0]
-    return f"{root}-{stem}{ext or '.png'}"

@@ -22,7 +22,21 @@ from rockscan.cli import _errors, main
     type=click.Path(file_okay=False),
     help="Folder to write photos and their truth (.json) into.",
 )
-@click.option("-n", "--count", type=int, default=None, help="Photos to draw (default: one per spec shape).")
+@click.option(
+    "-n",
+    "--count",
+    type=click.IntRange(min=1),
+    default=None,
+    help="Photos to draw (default: one per spec shape).",
+)
+@click.option(
+    "--rocks",
+    type=click.IntRange(min=1),
+    default=1,
+    show_default=True,
+    help="Rocks per photo; with more than one, each photo shows shapes drawn at random from the "
+    "spec, apart from each other, sharing --area.",
+)
 @click.option("--shape", "shape_names", multiple=True, help="Only these spec shapes (repeatable).")
 @click.option(
     "--seed", type=int, default=0, show_default=True, help="Random seed; the same seed draws the same photos."
@@ -39,10 +53,30 @@ from rockscan.cli import _errors, main
     show_default=True,
     help="Rock lighter or darker than the ground.",
 )
-@click.option("--contrast", type=float, default=0.35, show_default=True)
-@click.option("--rock-texture", type=float, default=0.04, show_default=True)
-@click.option("--ground-texture", type=float, default=0.04, show_default=True)
-@click.option("--pebbles", type=int, default=0, show_default=True, help="Pebbles scattered on the ground.")
+@click.option(
+    "--contrast",
+    type=float,
+    default=0.35,
+    show_default=True,
+    help="Brightness difference of rock and ground (0 to 1).",
+)
+@click.option(
+    "--rock-texture", type=float, default=0.04, show_default=True, help="Amplitude of the rock's texture."
+)
+@click.option(
+    "--ground-texture",
+    type=float,
+    default=0.04,
+    show_default=True,
+    help="Amplitude of the ground's texture.",
+)
+@click.option(
+    "--pebbles",
+    type=click.IntRange(min=0),
+    default=0,
+    show_default=True,
+    help="Pebbles scattered on the ground.",
+)
 @click.option("--gradient", type=float, default=0.2, show_default=True, help="Lighting gradient strength.")
 @click.option("--shadow", type=float, default=0.0, show_default=True, help="Shadow darkness, 0 to 1.")
 @click.option("--noise", type=float, default=0.02, show_default=True, help="Pixel noise standard deviation.")
@@ -71,6 +105,7 @@ def render_cmd(
     spec: str | None,
     out_dir: str,
     count: int | None,
+    rocks: int,
     shape_names: tuple[str, ...],
     seed: int,
     size: str,
@@ -91,11 +126,19 @@ def render_cmd(
     bits: str,
     fmt: str | None,
 ) -> None:
-    """Draw synthetic rock photos of a spec's shapes, each with a ground-truth JSON."""
+    """Draw synthetic rock photos of a spec's shapes, each with a ground-truth JSON.
+
+    SPEC is a library spec (TOML); without it, the built-in library's spec.
+    Photo i is named NNNN-SHAPE.EXT and its truth NNNN-SHAPE.json: rotation,
+    scale, position, centroid, polarity, symmetry and every render setting.
+    The same --seed draws the same photos; photo i alone is
+    rockscan.render.render_photo(params, config, rng=[seed, i]).
+    """
     import numpy as np
 
+    from rockscan.errors import ParameterError
     from rockscan.io import default_spec_path, read_spec
-    from rockscan.render import RenderConfig, render_photo
+    from rockscan.render import RenderConfig, render_photo, render_scene
 
     try:
         rows, cols = (int(v) for v in size.lower().split("x"))
@@ -109,35 +152,51 @@ def render_cmd(
         shapes = [s for s in shapes if s.name in shape_names]
     if not shapes:
         raise click.UsageError("the spec has no Superformula shapes to draw")
-    config = RenderConfig(
-        rows=rows,
-        cols=cols,
-        area_fraction=area,
-        angle_deg=angle,
-        rock_lighter=None if polarity == "random" else polarity == "light",
-        contrast=contrast,
-        rock_texture=rock_texture,
-        ground_texture=ground_texture,
-        pebbles=pebbles,
-        gradient=gradient,
-        shadow=shadow,
-        noise=noise,
-        blur=blur,
-        jpeg_quality=jpeg_quality,
-        outline_noise=outline_noise,
-        color=not gray,
-        bit_depth=int(bits),
-    )
+    try:
+        config = RenderConfig(
+            rows=rows,
+            cols=cols,
+            area_fraction=area,
+            angle_deg=angle,
+            rock_lighter=None if polarity == "random" else polarity == "light",
+            contrast=contrast,
+            rock_texture=rock_texture,
+            ground_texture=ground_texture,
+            pebbles=pebbles,
+            gradient=gradient,
+            shadow=shadow,
+            noise=noise,
+            blur=blur,
+            jpeg_quality=jpeg_quality,
+            outline_noise=outline_noise,
+            color=not gray,
+            bit_depth=int(bits),
+        )
+    except ParameterError as exc:
+        raise click.UsageError(str(exc)) from None
     suffix = "." + (fmt or ("jpg" if jpeg_quality else "png"))
-    os.makedirs(out_dir, exist_ok=True)
-    rng = np.random.default_rng(seed)
+    if suffix in (".jpg", ".bmp") and config.bit_depth == 16:
+        raise click.UsageError(f"{suffix[1:].upper()} photos are 8 bits; use --bits 8 or --format png/tif")
+    try:
+        os.makedirs(out_dir, exist_ok=True)
+    except OSError as exc:
+        raise ParameterError(f"{out_dir}: cannot create the folder ({exc.strerror or exc})") from None
     total = count if count is not None else len(shapes)
     for i in range(total):
-        shape = shapes[i % len(shapes)]
-        photo = render_photo(shape.params, config, rng=rng, name=shape.name)
-        stem = f"{i:04d}-{shape.name}"
-        with open(os.path.join(out_dir, stem + suffix), "wb") as fh:
-            fh.write(photo.encode(suffix))
-        with open(os.path.join(out_dir, stem + ".json"), "w", encoding="utf-8") as fh:
-            json.dump({"photo": stem + suffix, "seed": seed, **photo.truth}, fh, indent=1)
+        rng = np.random.default_rng([seed, i])
+        if rocks == 1:
+            shape = shapes[i % len(shapes)]
+            photo = render_photo(shape.params, config, rng=rng, name=shape.name)
+            stem = f"{i:04d}-{shape.name}"
+        else:
+            chosen = [shapes[int(j)] for j in rng.integers(0, len(shapes), rocks)]
+            photo = render_scene([s.params for s in chosen], config, rng=rng, names=[s.name for s in chosen])
+            stem = f"{i:04d}-scene"
+        photo.save(os.path.join(out_dir, stem + suffix))
+        truth = {"photo": stem + suffix, "seed": seed, "index": i, **photo.truth}
+        try:
+            with open(os.path.join(out_dir, stem + ".json"), "w", encoding="utf-8") as fh:
+                json.dump(truth, fh, indent=1)
+        except OSError as exc:
+            raise ParameterError(f"{out_dir}: cannot write the truth ({exc.strerror or exc})") from None
     click.echo(f"wrote {total} photos with truth to {out_dir}")

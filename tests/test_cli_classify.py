@@ -1,0 +1,378 @@
+"""``rockscan classify`` (and ``rockscan match``): the public JSON contract, errors, exit codes.
+
+Every input kind and every bad input is checked twice: through click's
+CliRunner and through :func:`rockscan.pipeline.classify_path`.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+from pathlib import Path
+
+import cv2
+import numpy as np
+import pytest
+from click.testing import CliRunner
+from hypothesis import given, settings
+from hypothesis import strategies as st
+from PIL import Image
+from test_imageio import BAD_FILES, make_bad_file
+
+from rockscan.cli import main
+from rockscan.io import write_spec
+from rockscan.library import ShapeSpec
+from rockscan.pipeline import classify_image, classify_path
+from rockscan.render import RenderConfig, render_photo, render_scene
+from rockscan.superformula import SuperformulaParams
+
+SHAPES = {
+    "three-faced-blunt": SuperformulaParams(6, 6, 60, 55, 10),
+    "teardrop": SuperformulaParams(1, 1, 0.5, 0.5, 0.5),
+    "six-pointed-star": SuperformulaParams(6, 6, 0.2, 1.7, 1.7),
+    "rounded-square": SuperformulaParams(4, 4, 4, 4, 4),
+}
+#: The interface's keys and their JSON types.
+KEYS = {
+    "path": str,
+    "match": (str, type(None)),
+    "nearest": str,
+    "mscore": float,
+    "distance": float,
+    "angle_deg": float,
+    "interesting": bool,
+    "centroid": list,
+}
+
+
+def run(*args: str):
+    return CliRunner().invoke(main, ["classify", *args])
+
+
+def lines(output: str) -> list[dict]:
+    return [json.loads(line) for line in output.splitlines()]
+
+
+def angle_error(a: float, b: float, symmetry: int) -> float:
+    period = 360.0 / symmetry if symmetry > 0 else 360.0
+    return abs((a - b + period / 2) % period - period / 2)
+
+
+@pytest.fixture(scope="module")
+def rendered(tmp_path_factory):
+    """One photo per shape (240x320, PNG) and its truth."""
+    folder = tmp_path_factory.mktemp("photos")
+    out = {}
+    for i, (name, params) in enumerate(SHAPES.items()):
+        photo = render_photo(params, RenderConfig(rows=240, cols=320, area_fraction=0.15), rng=i, name=name)
+        path = folder / f"{name}.png"
+        photo.save(path)
+        out[name] = (str(path), photo.truth)
+    return out
+
+
+# ---------------------------------------------------------------- the JSON contract
+
+
+def test_json_is_one_object_per_photo_in_input_order(rendered, tmp_path):
+    paths = [rendered["teardrop"][0], str(tmp_path / "missing.png"), rendered["six-pointed-star"][0]]
+    paths.append(rendered["teardrop"][0])
+    result = run("--json", *paths)
+    assert result.exit_code == 1
+    records = lines(result.stdout)
+    assert [r["path"] for r in records] == paths
+    assert records[1] == {"path": paths[1], "error": f"{paths[1]}: file not found"}
+    for record in (records[0], records[2], records[3]):
+        for key, kind in KEYS.items():
+            assert isinstance(record[key], kind), key
+        assert len(record["centroid"]) == 2 and all(isinstance(v, float) for v in record["centroid"])
+    assert records[0] == records[3]
+    assert [records[0]["nearest"], records[2]["nearest"]] == ["teardrop", "six-pointed-star"]
+
+
+def test_json_values_are_the_truth_of_rendered_photos(rendered):
+    result = run("--json", *(path for path, _ in rendered.values()))
+    assert result.exit_code == 0, result.output
+    for record, (name, (path, truth)) in zip(lines(result.stdout), rendered.items(), strict=True):
+        assert record["path"] == path
+        assert record["nearest"] == record["match"] == name
+        assert record["interesting"] is True
+        assert 0.5 < record["mscore"] <= 1.0 and record["distance"] >= 0
+        np.testing.assert_allclose(record["centroid"], truth["centroid_xy"], atol=1.0)
+        assert angle_error(record["angle_deg"], truth["angle_deg"], truth["symmetry"]) < 1.5
+        assert 0.0 <= record["angle_deg"] < 360.0
+
+
+def test_table_is_the_default(rendered, tmp_path):
+    paths = [rendered["rounded-square"][0], str(tmp_path)]
+    result = run(*paths)
+    assert result.exit_code == 1
+    header, good, bad = result.stdout.splitlines()
+    assert header.split()[:4] == ["photo", "rock", "match", "nearest"]
+    assert good.split()[1:4] == ["0", "rounded-square", "rounded-square"]
+    assert bad.endswith(f"error: {tmp_path}: is a folder, not a photo")
+    assert result.stderr == ""
+
+
+def test_all_good_exits_zero_and_table_matches_json(rendered):
+    path = rendered["three-faced-blunt"][0]
+    table, as_json = run(path), run("--json", path)
+    assert table.exit_code == as_json.exit_code == 0
+    record = lines(as_json.stdout)[0]
+    row = table.stdout.splitlines()[1].split()
+    assert row[2:5] == [record["match"], record["nearest"], f"{record['mscore']:.3f}"]
+
+
+# ---------------------------------------------------------------- --all
+
+
+@pytest.mark.parametrize("seed", [0, 1])
+def test_all_classifies_every_rock_of_a_scene(tmp_path, seed):
+    rng = np.random.default_rng(seed)
+    names = [str(n) for n in rng.choice(sorted(SHAPES), size=3 + seed)]
+    scene = render_scene(
+        [SHAPES[n] for n in names], RenderConfig(area_fraction=0.05 * len(names)), rng=rng, names=names
+    )
+    path = tmp_path / "scene.png"
+    scene.save(path)
+    result = run("--json", "--all", str(path))
+    assert result.exit_code == 0, result.output
+    records = lines(result.stdout)
+    assert [r["index"] for r in records] == list(range(len(names)))
+    assert all(r["path"] == str(path) for r in records)
+    for truth in scene.truth["rocks"]:
+        distance = [np.hypot(*np.subtract(r["centroid"], truth["centroid_xy"])) for r in records]
+        found = records[int(np.argmin(distance))]
+        assert min(distance) < 1.0
+        assert found["nearest"] == truth["shape"]
+        assert angle_error(found["angle_deg"], truth["angle_deg"], truth["symmetry"]) < 1.5
+    # Without --all, one rock, and one of those.
+    single = lines(run("--json", str(path)).stdout)
+    assert len(single) == 1 and single[0]["index"] == 0
+    assert min(np.hypot(*np.subtract(single[0]["centroid"], r["centroid"])) for r in records) < 1.0
+
+
+# ---------------------------------------------------------------- bad inputs
+
+
+def make_bad(folder: Path, kind: str, monkeypatch: pytest.MonkeyPatch) -> tuple[Path, str]:
+    """A bad input of some kind and the start of its error message."""
+    if kind in BAD_FILES:
+        return make_bad_file(folder, kind), BAD_FILES[kind][1]
+    if kind == "one-colour":
+        path = folder / "grey.png"
+        Image.fromarray(np.full((120, 160, 3), 128, np.uint8)).save(path)
+        return path, "no rock found"
+    if kind == "no-rock":
+        path = folder / "ground.jpg"
+        render_scene([], RenderConfig(rows=240, cols=320, ground_texture=0.0), rng=2).save(path)
+        return path, "no rock found"
+    assert kind == "unreadable"
+    path = folder / "locked.png"
+    Image.fromarray(np.zeros((16, 16), np.uint8)).save(path)
+    real_open = open
+
+    def guarded(file, *args, **kwargs):
+        if os.fspath(file) == str(path):
+            raise PermissionError(13, "Permission denied", str(path))
+        return real_open(file, *args, **kwargs)
+
+    monkeypatch.setattr("builtins.open", guarded)
+    return path, "permission denied"
+
+
+BAD_KINDS = [*sorted(BAD_FILES), "one-colour", "no-rock", "unreadable"]
+
+
+@pytest.mark.parametrize("kind", BAD_KINDS)
+def test_bad_input_gives_an_error_line_and_the_others_go_on(tmp_path, rendered, monkeypatch, kind):
+    bad, message = make_bad(tmp_path, kind, monkeypatch)
+    good = rendered["teardrop"][0]
+    result = run("--json", good, str(bad), good)
+    assert result.exit_code == 1
+    assert not isinstance(result.exception, Exception) or isinstance(result.exception, SystemExit)
+    first, error, last = lines(result.stdout)
+    assert set(error) == {"path", "error"} and error["path"] == str(bad)
+    assert message in error["error"] and "\n" not in error["error"]
+    assert first["nearest"] == last["nearest"] == "teardrop"
+    assert "Traceback" not in result.output
+    table = run(str(bad))
+    assert table.exit_code == 1 and f"error: {error['error']}" in table.stdout
+
+
+@pytest.mark.parametrize("kind", BAD_KINDS)
+def test_bad_input_is_an_error_result_of_classify_path(tmp_path, default_lib, monkeypatch, kind):
+    bad, message = make_bad(tmp_path, kind, monkeypatch)
+    result = classify_path(bad, default_lib)
+    assert not result.ok and result.rocks == ()
+    assert message in result.error
+    assert result.records() == [{"path": str(bad), "error": result.error}]
+
+
+@pytest.mark.parametrize(
+    ("args", "message"),
+    [
+        ([], "Missing argument"),
+        (["--mscore-cutoff", "high", "x.png"], "is not a valid float"),
+        (["--metric", "euclid", "x.png"], "'euclid' is not one of"),
+        (["--no-such-option", "x.png"], "No such option"),
+        (["--plot", "no-such-folder/plot.png", "x.png"], "does not exist"),
+    ],
+)
+def test_usage_errors_exit_two(args, message):
+    result = run(*args)
+    assert result.exit_code == 2
+    assert message in result.stderr
+
+
+def test_bad_library_is_one_error_line(rendered, tmp_path):
+    result = run("--library", str(tmp_path / "nothing.npz"), rendered["teardrop"][0])
+    assert result.exit_code == 1
+    assert result.stderr == f"rockscan: error: {tmp_path / 'nothing.npz'}: library file not found\n"
+
+
+def test_library_spec_limits_the_answers(rendered, tmp_path):
+    spec = tmp_path / "four.toml"
+    names = {"blunt": "three-faced-blunt", "star": "six-pointed-star", "square": "rounded-square"}
+    shapes = [ShapeSpec(short, SHAPES[name]) for short, name in names.items()]
+    write_spec([*shapes, ShapeSpec("disc", SuperformulaParams(0, 0, 1, 1, 1))], spec)
+    result = run("--json", "--library", str(spec), rendered["three-faced-blunt"][0])
+    assert result.exit_code == 0
+    assert lines(result.stdout)[0]["nearest"] == "blunt"
+
+
+# ---------------------------------------------------------------- --plot
+
+
+def test_plot_writes_one_file_per_photo(rendered, tmp_path):
+    one = tmp_path / "one.png"
+    result = run("--plot", str(one), rendered["teardrop"][0])
+    assert result.exit_code == 0 and one.stat().st_size > 10_000
+    other = tmp_path / "copy"
+    other.mkdir()
+    twin = other / "teardrop.png"
+    twin.write_bytes(Path(rendered["teardrop"][0]).read_bytes())
+    # Several photos: the photo's name is added, and its position when two share a name;
+    # a photo that fails gets no plot.
+    paths = [rendered["teardrop"][0], str(twin), str(tmp_path / "gone.png")]
+    result = run("--plot", str(tmp_path / "many.png"), *paths)
+    assert result.exit_code == 1
+    written = sorted(p.name for p in tmp_path.glob("many-*.png"))
+    assert written == ["many-teardrop-0.png", "many-teardrop-1.png"]
+
+
+def test_plot_that_cannot_be_written_is_an_error_but_json_goes_on(rendered, tmp_path):
+    target = tmp_path / "plot.unknown-format"
+    result = run("--json", "--plot", str(target), rendered["teardrop"][0])
+    assert result.exit_code == 1
+    assert lines(result.stdout)[0]["nearest"] == "teardrop"
+    assert result.stderr.startswith("rockscan: error:") and "cannot write the plot" in result.stderr
+
+
+# ---------------------------------------------------------------- every input kind
+
+
+def _variants(folder: Path, pixels: np.ndarray) -> dict[str, Path]:
+    """The same photo in every format, mode and bit depth the interface names."""
+    gray = np.asarray(Image.fromarray(pixels).convert("L"))
+    opaque = np.dstack([pixels, np.full(pixels.shape[:2], 255, np.uint8)])
+    out = {}
+    for mode, arr in (("rgb", pixels), ("gray", gray), ("rgba", opaque)):
+        for suffix in (".png", ".tif", ".bmp", ".jpg"):
+            if suffix == ".jpg" and mode == "rgba":
+                continue
+            path = folder / f"{mode}-8{suffix}"
+            if suffix == ".bmp" and mode == "rgba":
+                cv2.imwrite(str(path), arr[..., [2, 1, 0, 3]])
+            else:
+                Image.fromarray(arr).save(path, **({"quality": 95} if suffix == ".jpg" else {}))
+            out[path.stem + suffix] = path
+        for suffix in (".png", ".tif"):
+            path = folder / f"{mode}-16{suffix}"
+            deep = arr.astype(np.uint16) * 257
+            if deep.ndim == 3:
+                order = [2, 1, 0] if deep.shape[2] == 3 else [2, 1, 0, 3]
+                cv2.imwrite(str(path), deep[..., order])
+            else:
+                Image.fromarray(deep).save(path)
+            out[path.stem + suffix] = path
+    return out
+
+
+def test_every_input_kind_gives_the_same_classification(tmp_path, default_lib):
+    """PNG, TIFF, BMP, JPEG; gray, RGB, RGBA; 8 and 16 bits: same match, angle within
+    1 degree and centroid within 1 pixel, through the CLI and classify_path alike."""
+    photo = render_photo(
+        SHAPES["teardrop"], RenderConfig(rows=240, cols=320, area_fraction=0.15, angle_deg=70.0), rng=5
+    )
+    variants = _variants(tmp_path, photo.pixels)
+    assert len(variants) == 17
+    reference = classify_path(variants["rgb-8.png"], default_lib).rocks[0]
+    assert reference.match.nearest == "teardrop"
+    result = run("--json", *(str(p) for p in variants.values()))
+    assert result.exit_code == 0, result.output
+    records = lines(result.stdout)
+    for (name, path), record in zip(variants.items(), records, strict=True):
+        direct = classify_path(path, default_lib)
+        assert direct.ok, (name, direct.error)
+        assert record == direct.records()[0], name
+        assert record["nearest"] == "teardrop", name
+        assert angle_error(record["angle_deg"], reference.match.angle_deg, 1) < 1.0, name
+        np.testing.assert_allclose(record["centroid"], reference.centroid_xy, atol=1.0, err_msg=name)
+
+
+def test_alpha_that_cuts_the_rock_out_is_the_outline(tmp_path, default_lib):
+    photo = render_photo(
+        SHAPES["six-pointed-star"],
+        RenderConfig(rows=240, cols=320, area_fraction=0.2, angle_deg=12.0, noise=0.0, blur=0.0),
+        rng=3,
+    )
+    gray = np.asarray(Image.fromarray(photo.pixels).convert("L")).astype(float)
+    inside = np.abs(gray - np.median(gray)) > 0.5 * np.abs(gray - np.median(gray)).max()
+    # The photo's colours say nothing (flat grey); only the alpha channel shows the rock.
+    rgba = np.dstack([np.full((*gray.shape, 3), 90, np.uint8), np.where(inside, 255, 0).astype(np.uint8)])
+    path = tmp_path / "cutout.png"
+    Image.fromarray(rgba).save(path)
+    rock = classify_path(path, default_lib).rocks[0]
+    assert rock.match.nearest == "six-pointed-star"
+    np.testing.assert_allclose(rock.centroid_xy, photo.truth["centroid_xy"], atol=1.0)
+
+
+# ---------------------------------------------------------------- rotation and scale
+
+
+@settings(max_examples=8)
+@given(
+    index=st.integers(0, 12),
+    angle=st.floats(0.0, 360.0, exclude_max=True),
+    area=st.floats(0.02, 0.6),
+)
+def test_rotation_and_scale_of_the_rock_are_found(default_lib, default_specs, index, angle, area):
+    """Any turn and any size the interface allows: the right shape, and the angle
+    within 1.5 degrees modulo the shape's symmetry."""
+    spec = [s for s in default_specs if s.name != "circle"][index]
+    config = RenderConfig(angle_deg=angle, area_fraction=area)
+    photo = render_photo(spec.params, config, rng=index, name=spec.name)
+    rock = classify_image(photo.pixels, default_lib)[0]
+    assert rock.match.nearest == spec.name
+    assert angle_error(rock.match.angle_deg, angle, photo.truth["symmetry"]) < 1.5
+    np.testing.assert_allclose(rock.centroid_xy, photo.truth["centroid_xy"], atol=1.0)
+
+
+# ---------------------------------------------------------------- rockscan match
+
+
+def test_match_finds_shape_and_rotation_without_a_photo():
+    result = CliRunner().invoke(main, ["match", "--params", "6,6,60,55,10", "--rotate", "25", "--json"])
+    assert result.exit_code == 0, result.output
+    record = json.loads(result.stdout)
+    assert record["nearest"] == "three-faced-blunt" and record["interesting"] is True
+    assert angle_error(record["angle_deg"], 25.0, 3) < 0.5
+
+
+@pytest.mark.parametrize(
+    "args",
+    [["match"], ["match", "--params", "1,2,3"], ["match", "--params", "6,6,60,55,10", "--radii", "r.txt"]],
+)
+def test_match_usage_errors_exit_two(args):
+    assert CliRunner().invoke(main, args).exit_code == 2

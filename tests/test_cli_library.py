@@ -1,0 +1,143 @@
+"""Command line: library build/show and match, with click's CliRunner."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+from click.testing import CliRunner
+
+from rockscan.cli import main
+from rockscan.io import default_spec_path, load_library
+from rockscan.library import shape_radii
+from rockscan.superformula import SuperformulaParams
+
+
+@pytest.fixture
+def runner():
+    return CliRunner()
+
+
+def test_build_and_show(runner, tmp_path):
+    out = tmp_path / "lib.npz"
+    result = runner.invoke(main, ["library", "build", str(default_spec_path()), "-o", str(out)])
+    assert result.exit_code == 0, result.output
+    assert "14 shapes, 13 eigenfaces" in result.output
+    assert len(load_library(out)) == 14
+    shown = runner.invoke(main, ["library", "show", str(out), "--plot", str(tmp_path / "shapes.png")])
+    assert shown.exit_code == 0
+    assert "six-pointed-star" in shown.output and "circle" in shown.output
+    assert (tmp_path / "shapes.png").stat().st_size > 10_000
+    as_json = runner.invoke(main, ["library", "show", str(out), "--json"])
+    records = [json.loads(line) for line in as_json.stdout.splitlines()]
+    assert len(records) == 14 and records[2]["name"] == "six-pointed-star" and records[2]["symmetry"] == 6
+
+
+@pytest.mark.parametrize("face", ["information", "radii", "information-shape"])
+def test_build_face_kinds(runner, tmp_path, face):
+    args = [
+        "library",
+        "build",
+        str(default_spec_path()),
+        "-o",
+        str(tmp_path / "l.npz"),
+        "--face",
+        face,
+        "--n-angles",
+        "180",
+    ]
+    if face == "information-shape":
+        args += ["--reference", "rounded-triangle"]
+    result = runner.invoke(main, args)
+    assert result.exit_code == 0, result.output
+    assert load_library(tmp_path / "l.npz").face_config.kind == face
+
+
+def test_build_errors_are_one_line(runner, tmp_path):
+    bad = tmp_path / "bad.toml"
+    bad.write_text('[[shape]]\nname = "x"\nm1 = 4\nm2 = 4\nn1 = 0\nn2 = 1\nn3 = 1\n')
+    result = runner.invoke(main, ["library", "build", str(bad), "-o", str(tmp_path / "l.npz")])
+    assert result.exit_code == 1
+    assert result.stderr.count("\n") == 1 and "n1 must be non-zero" in result.stderr
+    assert "Traceback" not in result.output
+    missing_ref = runner.invoke(
+        main, ["library", "build", str(default_spec_path()), "-o", "x.npz", "--face", "information-shape"]
+    )
+    assert missing_ref.exit_code == 1 and "--reference" in missing_ref.stderr
+    usage = runner.invoke(main, ["library", "build", str(default_spec_path())])
+    assert usage.exit_code == 2
+
+
+def test_show_refuses_a_corrupt_library(runner, tmp_path):
+    bad = tmp_path / "lib.npz"
+    bad.write_bytes(b"PK\x03\x04 broken")
+    result = runner.invoke(main, ["library", "show", str(bad)])
+    assert result.exit_code == 1
+    assert result.stderr.startswith("rockscan: error: ") and result.stderr.count("\n") == 1
+
+
+def test_match_superformula_parameters(runner):
+    result = runner.invoke(main, ["match", "--params", "6,6,0.2,1.7,1.7", "--rotate", "25", "--json"])
+    assert result.exit_code == 0, result.output
+    record = json.loads(result.stdout)
+    assert record["nearest"] == "six-pointed-star" and record["interesting"] is True
+    assert record["mscore"] == pytest.approx(1.0, abs=1e-6)
+    assert record["angle_deg"] % 60 == pytest.approx(25.0, abs=0.1)
+
+
+def test_match_radii_file_at_another_sampling(runner, tmp_path):
+    radii = shape_radii(SuperformulaParams(1, 1, 0.5, 0.5, 0.5), 720) * 40
+    path = tmp_path / "rock.txt"
+    np.savetxt(path, radii)
+    result = runner.invoke(main, ["match", "--radii", str(path)])
+    assert result.exit_code == 0, result.output
+    assert result.stdout.startswith("nearest teardrop")
+
+
+def test_match_with_a_spec_as_library_and_the_papers_method(runner, tmp_path):
+    spec = tmp_path / "paper.toml"
+    spec.write_text(
+        '[[shape]]\nname = "rounded-triangle"\nm1 = 3\nm2 = 3\nn1 = 1500\nn2 = 1500\nn3 = 1500\n'
+        '[[shape]]\nname = "six-pointed-star"\nm1 = 6\nm2 = 6\nn1 = 0.2\nn2 = 1.7\nn3 = 1.7\n'
+    )
+    result = runner.invoke(
+        main,
+        [
+            "match",
+            "--params",
+            "6,6,0.205,1.71,1.71",
+            "--library",
+            str(spec),
+            "--method",
+            "paper",
+            "--no-scan",
+            "--json",
+        ],
+    )
+    assert result.exit_code == 0, result.output
+    assert json.loads(result.stdout)["nearest"] == "six-pointed-star"
+
+
+@pytest.mark.parametrize(
+    ("args", "code", "text"),
+    [
+        (["match"], 2, "exactly one of --params or --radii"),
+        (["match", "--params", "1,2,3"], 2, "5 or 7"),
+        (["match", "--params", "a,b,c,d,e"], 2, "5 or 7"),
+        (["match", "--params", "4,4,0,1,1"], 1, "n1 must be non-zero"),
+        (["match", "--params", "2,4,1,1,1"], 1, "unbounded"),
+        (["match", "--radii", "/nonexistent/r.txt"], 1, "not found"),
+        (["match", "--params", "4,4,2,2,2", "--library", "/nonexistent.npz"], 1, "library file not found"),
+    ],
+)
+def test_match_errors(runner, args, code, text):
+    result = runner.invoke(main, args)
+    assert result.exit_code == code
+    assert text in result.output + result.stderr
+    assert "Traceback" not in result.output + result.stderr
+
+
+def test_help_and_version(runner):
+    assert runner.invoke(main, ["--help"]).exit_code == 0
+    assert "rockscan" in runner.invoke(main, ["--version"]).output

@@ -1,0 +1,140 @@
+"""``rockscan render``: photos and truth files, reproducible, in every format; errors."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+from click.testing import CliRunner
+
+from rockscan.cli import main
+from rockscan.io import default_spec_path, read_image, read_spec
+from rockscan.pipeline import classify_path
+from rockscan.render import RenderConfig, render_photo
+
+
+def render(*args: str):
+    return CliRunner().invoke(main, ["render", *args])
+
+
+def test_one_photo_per_spec_shape_with_truth_beside_it(tmp_path, default_lib):
+    out = tmp_path / "out"
+    result = render("-o", str(out), "--size", "240x320", "--seed", "3")
+    assert result.exit_code == 0, result.output
+    specs = read_spec(default_spec_path())
+    photos = sorted(out.glob("*.png"))
+    assert [p.stem for p in photos] == [f"{i:04d}-{s.name}" for i, s in enumerate(specs)]
+    truth = json.loads((out / f"{photos[1].stem}.json").read_text())
+    assert truth["photo"] == photos[1].name and truth["seed"] == 3 and truth["index"] == 1
+    assert truth["shape"] == specs[1].name and truth["params"] == specs[1].params.as_dict()
+    for key in ("angle_deg", "scale_px", "center_xy", "centroid_xy", "rock_lighter", "symmetry"):
+        assert key in truth
+    settings = truth["render"]
+    for key in ("rock_texture", "ground_texture", "gradient", "shadow", "noise", "blur", "jpeg_quality"):
+        assert key in settings
+    assert settings["outline_noise"] == 0.0 and (settings["rows"], settings["cols"]) == (240, 320)
+    record = classify_path(photos[1], default_lib).rocks[0]
+    assert record.match.nearest == truth["shape"]
+    np.testing.assert_allclose(record.centroid_xy, truth["centroid_xy"], atol=1.0)
+
+
+def test_photo_i_is_render_photo_with_seed_and_index(tmp_path):
+    result = render("-o", str(tmp_path), "-n", "3", "--shape", "egg", "--seed", "11", "--size", "96x128")
+    assert result.exit_code == 0, result.output
+    egg = next(s for s in read_spec(default_spec_path()) if s.name == "egg")
+    photo = render_photo(egg.params, RenderConfig(rows=96, cols=128), rng=[11, 2], name="egg")
+    np.testing.assert_array_equal(read_image(tmp_path / "0002-egg.png").pixels, photo.pixels)
+    truth = json.loads((tmp_path / "0002-egg.json").read_text())
+    assert truth["angle_deg"] == photo.truth["angle_deg"]
+
+
+def test_same_seed_same_bytes_other_seed_other_photos(tmp_path):
+    for name, seed in (("a", "5"), ("b", "5"), ("c", "6")):
+        assert render("-o", str(tmp_path / name), "-n", "2", "--seed", seed, "--size", "64x80").exit_code == 0
+    a, b, c = (sorted((tmp_path / n).iterdir()) for n in "abc")
+    assert [p.read_bytes() for p in a] == [p.read_bytes() for p in b]
+    assert a[0].read_bytes() != c[0].read_bytes()
+
+
+@pytest.mark.parametrize(
+    ("args", "suffix", "shape", "dtype"),
+    [
+        (["--format", "tif", "--bits", "16"], ".tif", (64, 80, 3), np.uint16),
+        (["--gray", "--bits", "16"], ".png", (64, 80), np.uint16),
+        (["--gray", "--format", "bmp"], ".bmp", (64, 80), np.uint8),
+        (["--jpeg", "80"], ".jpg", (64, 80, 3), np.uint8),
+    ],
+)
+def test_formats_bits_and_gray(tmp_path, args, suffix, shape, dtype):
+    result = render("-o", str(tmp_path), "-n", "1", "--size", "64x80", *args)
+    assert result.exit_code == 0, result.output
+    (photo,) = tmp_path.glob(f"*{suffix}")
+    image = read_image(photo)
+    assert image.pixels.shape == shape and image.pixels.dtype == dtype
+
+
+def test_camera_and_outline_settings_reach_the_truth(tmp_path):
+    args = ["--shadow", "0.5", "--pebbles", "7", "--gradient", "0.4", "--noise", "0.03", "--blur", "1.5"]
+    args += ["--outline-noise", "0.05", "--polarity", "dark", "--angle", "33", "--area", "0.2"]
+    result = render("-o", str(tmp_path), "-n", "1", "--size", "96x128", *args)
+    assert result.exit_code == 0, result.output
+    truth = json.loads(next(tmp_path.glob("*.json")).read_text())
+    assert truth["angle_deg"] == 33.0 and truth["rock_lighter"] is False
+    settings = truth["render"]
+    assert (settings["shadow"], settings["pebbles"], settings["gradient"]) == (0.5, 7, 0.4)
+    assert (settings["noise"], settings["blur"], settings["outline_noise"]) == (0.03, 1.5, 0.05)
+    assert truth["area_fraction"] == pytest.approx(0.2, rel=0.05)
+
+
+def test_scenes_list_every_rock(tmp_path, default_lib):
+    result = render("-o", str(tmp_path), "-n", "1", "--rocks", "3", "--seed", "2", "--area", "0.15")
+    assert result.exit_code == 0, result.output
+    truth = json.loads((tmp_path / "0000-scene.json").read_text())
+    assert len(truth["rocks"]) == 3
+    found = classify_path(tmp_path / "0000-scene.png", default_lib, all_rocks=True).rocks
+    assert len(found) == 3
+    for rock in truth["rocks"]:
+        match = min(found, key=lambda r: np.hypot(*np.subtract(r.centroid_xy, rock["centroid_xy"])))
+        assert match.match.nearest == rock["shape"]
+
+
+def test_custom_spec(tmp_path):
+    spec = tmp_path / "mine.toml"
+    spec.write_text('[[shape]]\nname = "hex"\nm1 = 6.0\nm2 = 6.0\nn1 = 8.0\nn2 = 8.0\nn3 = 8.0\n')
+    result = render(str(spec), "-o", str(tmp_path / "out"), "-n", "2", "--size", "64x64")
+    assert result.exit_code == 0, result.output
+    assert sorted(p.name for p in (tmp_path / "out").glob("*.png")) == ["0000-hex.png", "0001-hex.png"]
+
+
+@pytest.mark.parametrize(
+    ("args", "message"),
+    [
+        (["--size", "big"], "must be ROWSxCOLS"),
+        (["--shape", "no-such-shape"], "not in the spec: no-such-shape"),
+        (["--area", "0.95"], "area_fraction must be between"),
+        (["--bits", "16", "--jpeg", "90"], "JPEG photos are 8 bits"),
+        (["--bits", "16", "--format", "bmp"], "BMP photos are 8 bits"),
+        (["-n", "0"], "0 is not in the range x>=1"),
+        (["--size", "8x8"], "at least 16"),
+        (["--pebbles", "-2"], "not in the range x>=0"),
+    ],
+)
+def test_usage_errors_exit_two(tmp_path, args, message):
+    result = render("-o", str(tmp_path), *args)
+    assert result.exit_code == 2
+    assert message in result.stderr
+
+
+def test_output_that_is_a_file_is_one_error_line(tmp_path):
+    blocker = tmp_path / "file"
+    blocker.write_text("x")
+    result = render("-o", str(blocker / "sub"), "-n", "1")
+    assert result.exit_code == 1
+    assert result.stderr.startswith("rockscan: error:") and result.stderr.count("\n") == 1
+
+
+def test_missing_spec_is_one_error_line(tmp_path):
+    result = render(str(tmp_path / "none.toml"), "-o", str(tmp_path))
+    assert result.exit_code == 1
+    assert result.stderr == f"rockscan: error: {tmp_path / 'none.toml'}: spec file not found\n"

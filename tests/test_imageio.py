@@ -1,0 +1,364 @@
+"""Photo input: formats, modes, bit depths, EXIF orientation, reduced decoding, bad files."""
+
+from __future__ import annotations
+
+import io
+import os
+import subprocess
+import sys
+import textwrap
+from pathlib import Path
+
+import cv2
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+from PIL import Image, ImageOps
+
+from rockscan.errors import ImageReadError, ParameterError
+from rockscan.io import IMAGE_SUFFIXES, read_image
+from rockscan.pipeline import classify_path
+from rockscan.render import RenderConfig, render_photo
+from rockscan.superformula import SuperformulaParams
+
+TEARDROP = SuperformulaParams(1, 1, 0.5, 0.5, 0.5)
+BLUNT = SuperformulaParams(6, 6, 60, 55, 10)
+
+
+def _photo(mode: str, depth: int, rows: int = 48, cols: int = 64) -> np.ndarray:
+    """A small rendered photo as gray, RGB or RGBA (with a varying alpha), 8 or 16 bits."""
+    config = RenderConfig(rows=rows, cols=cols, color=mode != "gray", bit_depth=depth, area_fraction=0.2)
+    pixels = render_photo(BLUNT, config, rng=3).pixels
+    if mode == "rgba":
+        top = np.iinfo(pixels.dtype).max
+        alpha = np.linspace(top // 3, top, rows * cols).reshape(rows, cols).astype(pixels.dtype)
+        pixels = np.dstack([pixels, alpha])
+    return pixels
+
+
+def _write(path: Path, pixels: np.ndarray, **save: object) -> Path:
+    """Write with Pillow, or with OpenCV where Pillow cannot: 16-bit colour, and BMP with
+    alpha (Pillow stores a fourth BMP channel as padding)."""
+    if pixels.ndim == 3 and (pixels.dtype == np.uint16 or (path.suffix == ".bmp" and pixels.shape[2] == 4)):
+        order = [2, 1, 0] if pixels.shape[2] == 3 else [2, 1, 0, 3]
+        assert cv2.imwrite(str(path), np.ascontiguousarray(pixels[..., order]))
+    else:
+        Image.fromarray(pixels).save(path, **save)
+    return path
+
+
+LOSSLESS = [
+    (suffix, mode, depth)
+    for suffix in (".png", ".tif", ".bmp")
+    for mode in ("gray", "rgb", "rgba")
+    for depth in (8, 16)
+    if not (suffix == ".bmp" and depth == 16)
+]
+
+
+@pytest.mark.parametrize(("suffix", "mode", "depth"), LOSSLESS)
+def test_lossless_formats_read_back_exactly(tmp_path, suffix, mode, depth):
+    pixels = _photo(mode, depth)
+    image = read_image(_write(tmp_path / f"p{suffix}", pixels))
+    assert image.pixels.dtype == pixels.dtype
+    assert image.bit_depth == depth
+    np.testing.assert_array_equal(image.pixels, pixels)
+    assert image.scale == 1.0
+    assert image.full_shape == pixels.shape[:2]
+
+
+@pytest.mark.parametrize("mode", ["gray", "rgb"])
+def test_jpeg_reads_as_pillow_decodes_it(tmp_path, mode):
+    pixels = _photo(mode, 8)
+    path = _write(tmp_path / "p.jpg", pixels, quality=90)
+    image = read_image(path)
+    np.testing.assert_array_equal(image.pixels, np.asarray(Image.open(path)))
+    # Quality 90 with halved chroma keeps a noisy photo within a few levels on average.
+    assert np.abs(image.pixels.astype(int) - pixels).mean() < 6.0
+
+
+def test_suffixes_cover_the_interface_formats():
+    assert set(IMAGE_SUFFIXES) == {".png", ".jpg", ".jpeg", ".tif", ".tiff", ".bmp"}
+
+
+def test_palette_and_one_bit_photos_become_rgba_and_gray(tmp_path):
+    pixels = _photo("rgb", 8)
+    palette = Image.fromarray(pixels).quantize(16)
+    palette.info["transparency"] = 0
+    palette.save(tmp_path / "p.png")
+    image = read_image(tmp_path / "p.png")
+    assert image.pixels.shape == (*pixels.shape[:2], 4)
+    np.testing.assert_array_equal(image.pixels, np.asarray(Image.open(tmp_path / "p.png").convert("RGBA")))
+    Image.fromarray(pixels[..., 0] > 128).save(tmp_path / "b.bmp")
+    binary = read_image(tmp_path / "b.bmp").pixels
+    assert binary.dtype == np.uint8
+    np.testing.assert_array_equal(binary > 0, pixels[..., 0] > 128)
+
+
+# ---------------------------------------------------------------- EXIF orientation
+
+# Pillow's transpose for each EXIF orientation (stored -> upright), and its inverse.
+_UPRIGHT = {
+    2: Image.Transpose.FLIP_LEFT_RIGHT,
+    3: Image.Transpose.ROTATE_180,
+    4: Image.Transpose.FLIP_TOP_BOTTOM,
+    5: Image.Transpose.TRANSPOSE,
+    6: Image.Transpose.ROTATE_270,
+    7: Image.Transpose.TRANSVERSE,
+    8: Image.Transpose.ROTATE_90,
+}
+_STORED = {**_UPRIGHT, 6: Image.Transpose.ROTATE_90, 8: Image.Transpose.ROTATE_270}
+
+
+def _save_oriented(path: Path, upright: np.ndarray, orientation: int, fmt: str) -> None:
+    """Store a photo so that a viewer honouring EXIF shows ``upright``."""
+    im = Image.fromarray(upright)
+    if orientation != 1:
+        im = im.transpose(_STORED[orientation])
+    exif = Image.Exif()
+    exif[0x0112] = orientation
+    im.save(path, format=fmt, exif=exif)
+
+
+@pytest.mark.parametrize("orientation", range(1, 9))
+@pytest.mark.parametrize(("fmt", "suffix"), [("PNG", ".png"), ("JPEG", ".jpg"), ("TIFF", ".tif")])
+def test_orientation_agrees_with_pillow_exif_transpose(tmp_path, orientation, fmt, suffix):
+    upright = _photo("rgb", 8, rows=30, cols=52)
+    path = tmp_path / f"o{orientation}{suffix}"
+    _save_oriented(path, upright, orientation, fmt)
+    expected = np.asarray(ImageOps.exif_transpose(Image.open(path)))
+    image = read_image(path)
+    np.testing.assert_array_equal(image.pixels, expected)
+    assert image.full_shape == (30, 52)
+    if fmt != "JPEG":
+        np.testing.assert_array_equal(image.pixels, upright)
+
+
+@pytest.fixture(scope="module")
+def teardrop_photo():
+    return render_photo(TEARDROP, RenderConfig(rows=240, cols=320, angle_deg=35.0), rng=11, name="teardrop")
+
+
+@pytest.mark.parametrize("orientation", range(1, 9))
+def test_orientation_keeps_centroid_and_angle(tmp_path, teardrop_photo, default_lib, orientation):
+    path = tmp_path / "rock.png"
+    _save_oriented(path, teardrop_photo.pixels, orientation, "PNG")
+    result = classify_path(path, default_lib)
+    assert result.ok, result.error
+    rock = result.rocks[0]
+    truth = teardrop_photo.truth
+    assert rock.match.nearest == "teardrop"
+    np.testing.assert_allclose(rock.centroid_xy, truth["centroid_xy"], atol=1.0)
+    assert abs((rock.match.angle_deg - truth["angle_deg"] + 180) % 360 - 180) < 1.5
+
+
+# ---------------------------------------------------------------- large photos
+
+
+@pytest.fixture(scope="module")
+def big_photos(tmp_path_factory):
+    """A 480x640 render enlarged 5 times (2400x3200) as TIFF, JPEG and 16-bit gray PNG."""
+    folder = tmp_path_factory.mktemp("big")
+    photo = render_photo(BLUNT, RenderConfig(angle_deg=20.0, area_fraction=0.1), rng=2)
+    big = Image.fromarray(photo.pixels).resize((3200, 2400), Image.Resampling.BILINEAR)
+    big.save(folder / "big.tif")
+    big.save(folder / "big.jpg", quality=92)
+    gray16 = (np.asarray(big.convert("L")).astype(np.uint16) * 257).astype(np.uint16)
+    Image.fromarray(gray16).save(folder / "big16.png", compress_level=1)
+    # Pillow's resize puts output pixel centre j at input (j + 0.5)/5 - 0.5.
+    centroid = [(v + 0.5) * 5 - 0.5 for v in photo.truth["centroid_xy"]]
+    return folder, np.asarray(big), centroid, photo.truth["angle_deg"]
+
+
+@pytest.mark.parametrize("name", ["big.tif", "big.jpg", "big16.png"])
+def test_large_photos_decode_reduced_by_an_exact_factor(big_photos, name):
+    folder, full, _, _ = big_photos
+    image = read_image(folder / name, max_side=512)
+    k = int(image.scale)
+    assert image.scale == k and k in (4, 5, 6)
+    assert image.full_shape == (2400, 3200)
+    assert image.pixels.shape[:2] == (2400 // k, 3200 // k) or name == "big.jpg"
+    # Reduced pixel i is the mean of full pixels [i*k, (i+1)*k): compare with a block mean.
+    rows, cols = image.pixels.shape[:2]
+    reference = full[: rows * k, : cols * k].reshape(rows, k, cols, k, 3).mean(axis=(1, 3))
+    got = image.pixels.astype(float)
+    if got.ndim == 2:
+        reference = reference @ [0.299, 0.587, 0.114]
+        got = got / 257
+    assert np.abs(got - reference).mean() < (2.0 if name == "big.jpg" else 1.0)
+
+
+@pytest.mark.parametrize("name", ["big.tif", "big.jpg", "big16.png"])
+def test_large_photos_classify_in_full_resolution_pixels(big_photos, default_lib, name):
+    folder, _, centroid, angle = big_photos
+    result = classify_path(folder / name, default_lib)
+    assert result.ok, result.error
+    rock = result.rocks[0]
+    assert rock.match.nearest == "three-faced-blunt"
+    # One working pixel is 3200/512 = 6.25 photo pixels; the centroid is good to a fraction of it.
+    np.testing.assert_allclose(rock.centroid_xy, centroid, atol=2.5)
+    assert abs((rock.match.angle_deg - angle + 60) % 120 - 60) < 1.5
+
+
+@pytest.mark.parametrize("dark", [False, True])
+def test_large_sixteen_bit_colour_keeps_its_bits_only_when_dark(tmp_path, dark):
+    """Reduced 16-bit colour comes from 8 bits when the photo uses its range (OpenCV
+    would need 12 bytes a pixel), from all 16 when the 8 bits would crush it."""
+    pixels = _photo("rgb", 16, rows=400, cols=600)
+    if dark:
+        pixels = pixels // 64  # at most 1023: 8 bits would keep 4 levels
+    path = _write(tmp_path / "deep.png", pixels)
+    image = read_image(path, max_side=128)
+    assert image.scale == 4.0 and image.bit_depth == 16
+    assert image.pixels.dtype == (np.uint16 if dark else np.uint8)
+    blocks = pixels.reshape(100, 4, 150, 4, 3).astype(float)
+    expected = blocks.mean(axis=(1, 3)) if dark else (blocks // 256).mean(axis=(1, 3))
+    assert np.abs(image.pixels - expected).max() <= 1.0
+
+
+def test_eight_thousand_pixel_jpeg_classifies_in_bounded_memory(tmp_path):
+    """Peak memory of classifying an 8000x8000 JPEG, over that of a 1000x1000 one."""
+    photo = render_photo(BLUNT, RenderConfig(rows=1000, cols=1000, area_fraction=0.1), rng=5)
+    small = tmp_path / "small.jpg"
+    Image.fromarray(photo.pixels).save(small, quality=90)
+    big = tmp_path / "big.jpg"
+    Image.fromarray(photo.pixels).resize((8000, 8000), Image.Resampling.BILINEAR).save(big, quality=90)
+    script = textwrap.dedent(
+        """
+        import resource, sys
+        from rockscan.io import default_library
+        from rockscan.pipeline import classify_path
+        lib = default_library()
+        result = classify_path(sys.argv[1], lib)
+        assert result.ok, result.error
+        print(result.rocks[0].match.nearest, resource.getrusage(resource.RUSAGE_SELF).ru_maxrss)
+        """
+    )
+
+    def peak_mb(path: Path) -> tuple[str, float]:
+        out = subprocess.run(
+            [sys.executable, "-c", script, str(path)], capture_output=True, text=True, check=True
+        ).stdout.split()
+        return out[0], int(out[1]) / 1024
+
+    name_small, peak_small = peak_mb(small)
+    name_big, peak_big = peak_mb(big)
+    assert name_small == name_big == "three-faced-blunt"
+    # The full photo would be 192 MB of pixels (256 MB inside Pillow); decoded at 1/8
+    # it is 3 MB, so the big photo must cost no more than a few tens of MB extra.
+    assert peak_big - peak_small < 60, (peak_small, peak_big)
+
+
+# ---------------------------------------------------------------- bad files
+
+
+def _encoded(fmt: str, **save: object) -> bytes:
+    buf = io.BytesIO()
+    Image.fromarray(_photo("rgb", 8)).save(buf, format=fmt, **save)
+    return buf.getvalue()
+
+
+BAD_FILES = {
+    "missing": (None, "file not found"),
+    "folder": ("folder", "is a folder"),
+    "empty": (b"", "file is empty"),
+    "text": (b"a list of rocks, not a photo\n", "not a supported image"),
+    "png-cut": ("PNG", "truncated or corrupt"),
+    "jpeg-cut": ("JPEG", "truncated or corrupt"),
+    "gif": ("GIF", "GIF images are not supported"),
+}
+
+
+def make_bad_file(folder: Path, kind: str) -> Path:
+    """Write one kind of bad photo file into ``folder``; returns its path."""
+    content, _ = BAD_FILES[kind]
+    path = folder / f"{kind}.png"
+    if content is None:
+        return path
+    if content == "folder":
+        path.mkdir()
+    elif content == "GIF":
+        path.write_bytes(_encoded("GIF"))
+    elif isinstance(content, str):
+        data = _encoded(content)
+        path.write_bytes(data[: len(data) // 2])
+    else:
+        path.write_bytes(content)
+    return path
+
+
+@pytest.mark.parametrize("kind", sorted(BAD_FILES))
+def test_bad_files_raise_one_clear_image_read_error(tmp_path, kind):
+    path = make_bad_file(tmp_path, kind)
+    with pytest.raises(ImageReadError, match=BAD_FILES[kind][1]) as info:
+        read_image(path)
+    message = str(info.value)
+    assert message.startswith(f"{path}: ") and "\n" not in message
+    assert message.count(str(path)) == 1
+    assert isinstance(info.value, OSError)
+
+
+def test_unreadable_file_says_permission_denied(tmp_path, monkeypatch):
+    path = _write(tmp_path / "p.png", _photo("rgb", 8))
+    real_open = open
+
+    def guarded_open(file, *args, **kwargs):
+        if os.fspath(file) == str(path):
+            raise PermissionError(13, "Permission denied", str(path))
+        return real_open(file, *args, **kwargs)
+
+    monkeypatch.setattr("builtins.open", guarded_open)
+    with pytest.raises(ImageReadError, match="permission denied"):
+        read_image(path)
+
+
+def test_max_side_must_be_positive(tmp_path):
+    path = _write(tmp_path / "p.png", _photo("gray", 8))
+    with pytest.raises(ParameterError, match="max_side"):
+        read_image(path, max_side=0)
+
+
+@pytest.fixture(scope="module")
+def encoded_files():
+    pixels = _photo("rgb", 8)
+    out = {}
+    for fmt in ("PNG", "JPEG", "TIFF", "BMP"):
+        buf = io.BytesIO()
+        Image.fromarray(pixels).save(buf, format=fmt)
+        out[fmt] = buf.getvalue()
+    return out
+
+
+@settings(max_examples=40)
+@given(
+    fmt=st.sampled_from(["PNG", "JPEG", "TIFF", "BMP"]),
+    cut=st.floats(0.0, 1.0),
+    flips=st.lists(st.tuples(st.floats(0.0, 1.0), st.integers(1, 255)), max_size=4),
+)
+def test_damaged_files_never_raise_anything_but_image_read_error(
+    tmp_path_factory, encoded_files, fmt, cut, flips
+):
+    data = bytearray(encoded_files[fmt])
+    for where, xor in flips:
+        data[min(int(where * len(data)), len(data) - 1)] ^= xor
+    data = data[: max(1, int(cut * len(data)))] if cut < 1.0 else data
+    path = tmp_path_factory.mktemp("fuzz") / "damaged.img"
+    path.write_bytes(bytes(data))
+    try:
+        image = read_image(path)
+    except ImageReadError as exc:
+        assert "\n" not in str(exc)
+    else:
+        assert image.pixels.ndim in (2, 3) and image.pixels.size > 0
+
+
+def test_decoder_warnings_do_not_escape(tmp_path):
+    """A photo whose EXIF block is broken is read with orientation 1, silently."""
+    pixels = _photo("rgb", 8)
+    buf = io.BytesIO()
+    Image.fromarray(pixels).save(buf, format="JPEG", exif=b"Exif\x00\x00MM\x00*\x00\x00\x00\x08\xff\xff")
+    path = tmp_path / "broken-exif.jpg"
+    path.write_bytes(buf.getvalue())
+    image = read_image(path)
+    assert image.pixels.shape == pixels.shape

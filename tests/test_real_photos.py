@@ -1,0 +1,108 @@
+"""Real photos: scikit-image's coins (24 Greek coins under uneven light) and the bundled examples.
+
+The coins' positions come from an independent oracle, scikit-image's own
+gallery segmentation of this photo (Sobel elevation map, watershed from dark
+and bright markers, holes filled), not from rockscan.
+"""
+
+from __future__ import annotations
+
+import json
+from importlib.resources import files
+from pathlib import Path
+
+import numpy as np
+import pytest
+from click.testing import CliRunner
+from PIL import Image
+from scipy import ndimage
+from skimage import data, filters, measure, segmentation
+
+from rockscan.cli import main
+from rockscan.pipeline import classify_image, classify_path
+
+EXAMPLES = Path(str(files("rockscan._data") / "examples"))
+
+
+@pytest.fixture(scope="module")
+def coins() -> np.ndarray:
+    return data.coins()
+
+
+@pytest.fixture(scope="module")
+def oracle(coins) -> list:
+    """The 24 coins as scikit-image's gallery segments them (regions over 100 px)."""
+    elevation = filters.sobel(coins)
+    markers = np.zeros_like(coins)
+    markers[coins < 30] = 1
+    markers[coins > 150] = 2
+    filled = ndimage.binary_fill_holes(segmentation.watershed(elevation, markers) - 1)
+    regions = [r for r in measure.regionprops(ndimage.label(filled)[0]) if r.area > 100]
+    assert len(regions) == 24
+    return regions
+
+
+def test_classify_all_finds_the_24_coins_as_circles(tmp_path, coins, oracle):
+    path = tmp_path / "coins.png"
+    Image.fromarray(coins).save(path)
+    result = CliRunner().invoke(main, ["classify", "--all", "--json", str(path)])
+    assert result.exit_code == 0, result.output
+    records = [json.loads(line) for line in result.stdout.splitlines()]
+    assert len(records) == 24
+    assert all(r["nearest"] == r["match"] == "circle" for r in records)
+    # One found rock per oracle coin, at its centroid, of its size.
+    centroids = np.array([r["centroid"] for r in records])
+    unmatched = set(range(24))
+    for region in oracle:
+        cy, cx = region.centroid
+        distance = np.hypot(*(centroids - [cx, cy]).T)
+        j = int(np.argmin(distance))
+        assert distance[j] < 2.0, (cx, cy)
+        assert records[j]["area_px"] == pytest.approx(region.area, rel=0.1)
+        unmatched.discard(j)
+    assert not unmatched
+
+
+def test_single_coin_crops_classify_as_circles(coins, oracle, default_lib):
+    """Each coin cut out with a margin of 15% of its size on every side."""
+    for region in oracle:
+        r0, c0, r1, c1 = region.bbox
+        margin = int(0.15 * max(r1 - r0, c1 - c0))
+        top, left = max(0, r0 - margin), max(0, c0 - margin)
+        crop = coins[top : r1 + margin, left : c1 + margin]
+        rock = classify_image(crop, default_lib)[0]
+        cy, cx = region.centroid
+        assert rock.match.nearest == "circle", (cx, cy)
+        np.testing.assert_allclose(rock.centroid_xy, [cx - left, cy - top], atol=2.5)
+
+
+def test_bundled_examples_stay_small_and_documented():
+    names = sorted(p.name for p in EXAMPLES.iterdir())
+    assert "README.md" in names
+    assert sum(p.stat().st_size for p in EXAMPLES.iterdir()) < 1_000_000
+    readme = (EXAMPLES / "README.md").read_text()
+    photos = [name for name in names if name.endswith((".png", ".jpg"))]
+    assert "coin.png" in photos and len(photos) == 4
+    for name in photos:
+        assert name in readme
+    for name in names:
+        if name.endswith(".json"):
+            assert json.loads((EXAMPLES / name).read_text())["photo"] in photos
+
+
+def test_bundled_coin_is_a_circle(default_lib):
+    result = classify_path(EXAMPLES / "coin.png", default_lib)
+    assert result.ok, result.error
+    assert result.rocks[0].match.nearest == result.rocks[0].match.match == "circle"
+
+
+@pytest.mark.parametrize("truth_path", sorted(EXAMPLES.glob("*.json")), ids=lambda p: p.stem)
+def test_bundled_rendered_rocks_classify_as_their_truth(truth_path, default_lib):
+    truth = json.loads(truth_path.read_text())
+    result = classify_path(EXAMPLES / truth["photo"], default_lib)
+    assert result.ok, result.error
+    rock = result.rocks[0]
+    assert rock.match.nearest == truth["shape"]
+    np.testing.assert_allclose(rock.centroid_xy, truth["centroid_xy"], atol=1.0)
+    period = 360.0 / truth["symmetry"]
+    assert abs((rock.match.angle_deg - truth["angle_deg"] + period / 2) % period - period / 2) < 1.5
