@@ -42,6 +42,11 @@ _API = {
     "Match": "rockscan.match",
     "match_radii": "rockscan.match",
     "rotation_scores": "rockscan.match",
+    # growing libraries
+    "FitConfig": "rockscan.fit",
+    "FitResult": "rockscan.fit",
+    "fit_superformula": "rockscan.fit",
+    "family": "rockscan.fit",
     # photos
     "SegmentConfig": "rockscan.segment",
     "segment": "rockscan.segment",
