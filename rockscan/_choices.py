@@ -12,6 +12,8 @@ FACE_KINDS = ("information", "information-shape", "radii")
 GRIDS = ("polar", "cartesian")
 #: What a match distance measures.
 METRICS = ("eigenspace", "face")
+#: What ranks library shapes: a metric, or "auto" (chosen by the library's size).
+RANK_METRICS = ("auto", *METRICS)
 #: Matcher presets of the command line: rockscan's default and the paper's exact method.
 METHODS = ("default", "paper")
 #: Rock polarity settings of the segmentation.

@@ -51,6 +51,11 @@ DEFAULT_CUTOFFS: dict[str, tuple[float, float]] = {
 }
 
 
+#: With "auto", the eigenspace metric needs face space of at least this many
+#: dimensions (a library of this many shapes plus one); see MatchConfig.
+AUTO_MIN_COMPONENTS = 3
+
+
 @dataclass(frozen=True)
 class MatchConfig:
     """Settings of the matcher.
@@ -68,12 +73,16 @@ class MatchConfig:
     refine : bool
         Refine the best angle below the scan step by a parabola through the
         three best rotations' squared distances.
-    metric : {"eigenspace", "face"}
+    metric : {"auto", "eigenspace", "face"}
         What ``w`` measures. ``"eigenspace"`` is the paper's ``eps_k``, the
         distance inside face space: what the library's shapes cannot express
         (a real rock's small irregularities) is left out. ``"face"`` adds the
         distance from face space (Turk & Pentland's second measure),
         ``sqrt(eps_k**2 + dffs**2)``: the distance between whole faces.
+        ``"auto"`` (default) is ``"eigenspace"`` when face space has at least
+        ``AUTO_MIN_COMPONENTS`` dimensions, else ``"face"``: in a thinner face
+        space a turned sample's projection sweeps across it and can land on any
+        shape (a two-shape library has one eigenface).
     angle_metric : {"face", "eigenspace"}
         What the nearest shape's angle minimises. A turned sample leaves face
         space, where ``eps`` alone can find spurious alignments; the whole-face
@@ -85,16 +94,23 @@ class MatchConfig:
     mscore_cutoff: float | None = None
     scan: bool = True
     refine: bool = True
-    metric: str = "eigenspace"
+    metric: str = "auto"
     angle_metric: str = "face"
 
     def __post_init__(self) -> None:
-        _check_metric(self.metric)
+        if self.metric != "auto":
+            _check_metric(self.metric)
         _check_metric(self.angle_metric)
         for name in ("distance_cutoff", "mscore_cutoff"):
             value = getattr(self, name)
             if value is not None and (not isinstance(value, (int, float)) or math.isnan(value)):
                 raise ParameterError(f"{name} must be a number or None, got {value!r}")
+
+    def resolved_metric(self, library: Library) -> str:
+        """The metric in force for a library (``"auto"`` resolved)."""
+        if self.metric != "auto":
+            return self.metric
+        return "eigenspace" if library.basis.n_components >= AUTO_MIN_COMPONENTS else "face"
 
     def cutoffs(self, kind: str) -> tuple[float, float]:
         """The (distance, MScore) cutoffs in force for a face kind."""
@@ -120,7 +136,8 @@ class Match:
     distance : float
         Eigenspace distance to the nearest shape at its best rotation (outWeight).
     angle_deg : float
-        Rotation of the sample from the nearest shape, in [0, 360), counter-clockwise.
+        Rotation of the sample from the nearest shape, counter-clockwise, in
+        [0, 360/symmetry): the smallest of the equally good angles (0 for a circle).
     interesting : bool
         Whether the sample passed both cutoffs.
     residual : float
@@ -167,28 +184,31 @@ class ScanTemplates:
     """Fourier-domain templates that score every rotation of a sample at once.
 
     With ``q_a`` the sample term turned back by ``a`` rays and ``W`` the
-    reference information, the face is ``Gamma_a = W * q_a``. Everything the
-    matcher needs is a circular cross-correlation of ``q`` (or ``q**2``) along
-    theta with a fixed template, done by FFT:
+    reference information, the face is ``Gamma_a = W * q_a``. Its coordinates in
+    face space, ``omega_c(a) = u_c . (Gamma_a - Psi)``, are circular
+    cross-correlations of ``q`` along theta with the fixed templates ``W * u_c``,
+    done for every rotation at once by FFT; one more channel, ``W * Psi``, rides
+    along for the whole-face distance. Then, with ``Omega_k`` the library's
+    coordinates,
 
-    * ``(Gamma_a - Psi) . P(F_k - Psi)`` with ``W * P(F_k - Psi)``, one channel per
-      library shape (``P`` projects onto face space, where ``F_k - Psi`` lies);
-    * ``||Gamma_a - Psi||**2`` from ``W**2`` (against ``q**2``) and ``W * Psi``;
-    * ``||Omega(a)||**2`` from ``W * u_c``, one channel per eigenface (only for
-      the eigenspace metric).
+    * ``eps_k(a)**2 = ||omega(a)||**2 + ||Omega_k||**2 - 2 omega(a) . Omega_k``,
+      the paper's distance inside face space;
+    * ``d_k(a)**2 = ||Gamma_a - Psi||**2 + ||Omega_k||**2 - 2 omega(a) . Omega_k``,
+      the distance between whole faces (``F_k - Psi`` lies in face space, so its
+      product with ``Gamma_a - Psi`` is ``omega(a) . Omega_k``), where
+      ``||Gamma_a - Psi||**2`` correlates ``q**2`` with ``W**2``.
 
-    Then ``eps_k(a)**2 = ||Omega(a)||**2 + ||Omega_k||**2 - 2 cross(a, k)`` and the
-    full face distance ``d_k(a)**2 = ||Gamma_a - Psi||**2 + ||Omega_k||**2 - 2 cross(a, k)``.
-    The channel count is linear in the library size, and so is the cost.
+    The FFT work grows with the number of eigenfaces (at most one fewer than the
+    library's shapes, and memory-bound: the templates are read once per sample),
+    the products with ``Omega_k`` with eigenfaces times shapes (one dense matrix
+    product; for a thousand random shapes it costs about as much as the FFT work).
     """
 
-    shape_spectra: NDArray[np.complex128]
-    shape_offsets: NDArray[np.float64]
-    eigen_spectra: NDArray[np.complex128]
-    eigen_offsets: NDArray[np.float64]
-    mean_spectrum: NDArray[np.complex128]
+    spectra: NDArray[np.complex128]
     weight_sq_spectrum: NDArray[np.complex128]
+    eigen_offsets: NDArray[np.float64]
     mean_norm_sq: float
+    shape_weights: NDArray[np.float64]
     omega_norm_sq: NDArray[np.float64]
     n_angles: int
 
@@ -201,25 +221,22 @@ class ScanTemplates:
         basis = library.basis
         shape = config.face_shape
         w_map = library.weights_map
-        mean = basis.mean.reshape(shape)
-        in_span = (basis.weights @ basis.components).reshape(-1, *shape)
-        comps = basis.components.reshape(-1, *shape)
-
-        def spectra(stack: NDArray[np.float64]) -> NDArray[np.complex128]:
-            # (n_freq, n_sections, n_channels), conjugated: correlation, not convolution.
-            return np.ascontiguousarray(np.conj(np.fft.rfft(stack, axis=1)).transpose(1, 2, 0))
-
+        # One stack of channels against the sample term: the eigenfaces, then the mean face.
+        channels = np.concatenate([basis.components, basis.mean[None]]).reshape(-1, *shape) * w_map
         return cls(
-            shape_spectra=spectra(in_span * w_map),
-            shape_offsets=in_span.reshape(len(in_span), -1) @ basis.mean,
-            eigen_spectra=spectra(comps * w_map),
+            spectra=_template_spectra(channels),
+            weight_sq_spectrum=_template_spectra((w_map**2)[None]),
             eigen_offsets=basis.components @ basis.mean,
-            mean_spectrum=spectra((w_map * mean)[None]),
-            weight_sq_spectrum=spectra((w_map**2)[None]),
             mean_norm_sq=float(basis.mean @ basis.mean),
+            shape_weights=np.asarray(basis.weights),
             omega_norm_sq=np.einsum("kc,kc->k", basis.weights, basis.weights),
             n_angles=config.n_angles,
         )
+
+    @property
+    def n_components(self) -> int:
+        """Number of eigenfaces."""
+        return int(self.eigen_offsets.size)
 
     def squared_distances(
         self, q: NDArray[np.float64], metrics: tuple[str, ...] = ("eigenspace",)
@@ -240,25 +257,42 @@ class ScanTemplates:
             Row a is the sample turned back by a rays (``a * 360/n_angles`` deg).
         """
         spectrum = np.fft.rfft(q, axis=0)
-        cross = self._correlate(spectrum, self.shape_spectra) - self.shape_offsets
-        base = self.omega_norm_sq[None, :] - 2.0 * cross
+        corr = self._correlate(spectrum, self.spectra)
+        omega = corr[:, : self.n_components] - self.eigen_offsets
+        base = self.omega_norm_sq[None, :] - 2.0 * (omega @ self.shape_weights.T)
         out = {}
         for metric in metrics:
             if metric == "eigenspace":
-                omega = self._correlate(spectrum, self.eigen_spectra) - self.eigen_offsets
                 norm_sq = np.einsum("ac,ac->a", omega, omega)
             else:
-                norm_sq = self.centered_norm_sq(q, spectrum)
+                norm_sq = self._centered_norm_sq(q, corr[:, -1])
             out[metric] = np.maximum(norm_sq[:, None] + base, 0.0)
         return out
 
     def centered_norm_sq(
         self, q: NDArray[np.float64], spectrum: NDArray[np.complex128] | None = None
     ) -> NDArray[np.float64]:
-        """``||Gamma_a - Psi||**2`` for every rotation a."""
+        """``||Gamma_a - Psi||**2`` for every rotation a.
+
+        Parameters
+        ----------
+        q : (n_angles, n_sections) ndarray of float
+            The sample term of the face.
+        spectrum : (n_angles // 2 + 1, n_sections) ndarray of complex, optional
+            ``np.fft.rfft(q, axis=0)`` when already at hand.
+
+        Returns
+        -------
+        norm_sq : (n_angles,) ndarray of float
+        """
         spectrum = np.fft.rfft(q, axis=0) if spectrum is None else spectrum
+        with_mean = self._correlate(spectrum, self.spectra[:, :, -1:])[:, 0]
+        return self._centered_norm_sq(q, with_mean)
+
+    def _centered_norm_sq(
+        self, q: NDArray[np.float64], with_mean: NDArray[np.float64]
+    ) -> NDArray[np.float64]:
         face_sq = self._correlate(np.fft.rfft(q * q, axis=0), self.weight_sq_spectrum)[:, 0]
-        with_mean = self._correlate(spectrum, self.mean_spectrum)[:, 0]
         return face_sq - 2.0 * with_mean + self.mean_norm_sq
 
     def _correlate(
@@ -266,6 +300,11 @@ class ScanTemplates:
     ) -> NDArray[np.float64]:
         product = (spectrum[:, None, :] @ templates)[:, 0, :]
         return np.fft.irfft(product, n=self.n_angles, axis=0)
+
+
+def _template_spectra(stack: NDArray[np.float64]) -> NDArray[np.complex128]:
+    """(n_freq, n_sections, n_channels) conjugate spectra along theta: correlation, not convolution."""
+    return np.ascontiguousarray(np.conj(np.fft.rfft(stack, axis=1)).transpose(1, 2, 0))
 
 
 def rotation_scores(radii: ArrayLike, library: Library, *, metric: str = "eigenspace") -> NDArray[np.float64]:
@@ -336,9 +375,10 @@ def match_radii(radii: ArrayLike, library: Library, config: MatchConfig | None =
     config = config or MatchConfig()
     face_config = library.face_config
     radii = _check_sample(radii, face_config.n_angles)
-    metrics = tuple(dict.fromkeys((config.metric, config.angle_metric)))
+    metric = config.resolved_metric(library)
+    metrics = tuple(dict.fromkeys((metric, config.angle_metric)))
     dist = _scan(radii, library, metrics, scan=config.scan)
-    chosen = dist[config.metric]
+    chosen = dist[metric]
     best_shift = np.argmin(chosen, axis=0)
     w = chosen[best_shift, np.arange(chosen.shape[1])]
     k = int(np.argmin(w))
@@ -350,13 +390,25 @@ def match_radii(radii: ArrayLike, library: Library, config: MatchConfig | None =
         along = dist[config.angle_metric][:, k]
         shift_k = int(np.argmin(along))
         shift = float(shift_k) + (_parabola_offset(along**2, shift_k) if config.refine else 0.0)
-        angle_deg = float(np.mod(shift * step_deg, 360.0))
+        # Every angle alpha + j*360/order fits a shape of that symmetry: report
+        # the smallest, so that equal photos give equal numbers; a circle fits
+        # at every angle and gets 0.
+        order = int(library.symmetry[k])
+        period = 360.0 / order if order > 0 else 0.0
+        angle_deg = float(np.mod(shift * step_deg, period)) if period else 0.0
+        if angle_deg >= period:  # a tiny negative angle rounds up to the period
+            angle_deg = 0.0
         angles[k] = angle_deg
-    mean_w = float(w.mean())
-    mscore = 1.0 - float(w[k]) / mean_w if mean_w > 0 else 1.0
-    face = _face_at(radii, library, shift_k, None)
+    face = _face_at(radii, library, int(best_shift[k]), None)
     eps_best = float(library.basis.distances(face)[k])
     residual = float(library.basis.residual(face))
+    # The scan's distances come from expanded squares, whose rounding leaves
+    # ~1e-8 where the truth is 0; the nearest shape's is recomputed directly
+    # so that a library shape matched to itself scores exactly w = 0, MScore 1.
+    w = w.copy()
+    w[k] = eps_best if metric == "eigenspace" else float(np.hypot(eps_best, residual))
+    mean_w = float(w.mean())
+    mscore = 1.0 - float(w[k]) / mean_w if mean_w > 0 else 1.0
     distance_cutoff, mscore_cutoff = config.cutoffs(face_config.kind)
     interesting = bool(w[k] <= distance_cutoff and mscore > mscore_cutoff)
     return Match(

@@ -17,7 +17,7 @@ from typing import Any
 
 import click
 
-from rockscan._choices import METHODS, METRICS
+from rockscan._choices import METHODS, METRICS, RANK_METRICS
 
 
 def _fail(message: str, status: int = 1) -> None:
@@ -70,9 +70,10 @@ def _match_options(func: Callable[..., Any]) -> Callable[..., Any]:
         ),
         click.option(
             "--metric",
-            type=click.Choice(METRICS),
+            type=click.Choice(RANK_METRICS),
             default=None,
-            help="Distance that ranks shapes (default: eigenspace).",
+            help="Distance that ranks shapes (default: auto, the eigenspace distance for "
+            "libraries of 4 or more shapes).",
         ),
         click.option(
             "--angle-metric",
@@ -113,7 +114,7 @@ def _match_config(
 
     paper = method == "paper"
     return MatchConfig(
-        metric=metric or "eigenspace",
+        metric=metric or ("eigenspace" if paper else "auto"),
         angle_metric=angle_metric or ("eigenspace" if paper else "face"),
         distance_cutoff=distance_cutoff,
         mscore_cutoff=mscore_cutoff,

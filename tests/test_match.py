@@ -1,0 +1,186 @@
+"""Matching: the paper's tables, the rotation scan, invariances, cutoffs."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from conftest import PAPER_NEAR, PAPER_SHAPES
+from hypothesis import given
+from hypothesis import strategies as st
+
+from rockscan.errors import ParameterError
+from rockscan.information import FaceConfig, information_face
+from rockscan.library import Library, ShapeSpec, shape_radii
+from rockscan.match import MatchConfig, match_radii, rotation_scores
+from rockscan.polar import polar_angles, recenter_radii
+from rockscan.superformula import SuperformulaParams
+
+PAPER_EXACT = MatchConfig(metric="eigenspace", angle_metric="eigenspace")
+
+
+def turned_radii(params: SuperformulaParams, alpha_deg: float, n: int = 360) -> np.ndarray:
+    """The shape turned counter-clockwise by alpha, sampled exactly, about its centroid."""
+    raw = params.radii(polar_angles(n) - np.radians(alpha_deg))
+    return recenter_radii(raw)[0]
+
+
+def folded_error(angle: float, truth: float, order: int) -> float:
+    period = 360.0 / max(order, 1)
+    d = (angle - truth) % period
+    return min(d, period - d)
+
+
+@pytest.mark.parametrize("config", [MatchConfig(), PAPER_EXACT, MatchConfig(scan=False)])
+def test_table_1_library_shapes_match_themselves(paper_lib, config):
+    for name, params in PAPER_SHAPES.items():
+        m = match_radii(shape_radii(params, 360), paper_lib, config)
+        assert m.nearest == name and m.match == name and m.interesting
+        assert m.mscore == pytest.approx(1.0, abs=1e-9)
+        assert m.distance == pytest.approx(0.0, abs=1e-7)
+        others = np.delete(m.distances, paper_lib.index(name))
+        assert others.min() > 0.1  # the "Nearest Match" column: clearly apart
+
+
+def test_table_5_near_shapes_match_their_base_in_the_papers_order(paper_lib):
+    scores = {}
+    for config in (MatchConfig(), PAPER_EXACT, MatchConfig(scan=False, metric="eigenspace")):
+        for name, params in PAPER_NEAR.items():
+            m = match_radii(shape_radii(params, 360), paper_lib, config)
+            assert m.nearest == name
+            scores[name] = m.mscore
+        # Paper: 1, 1 and 0.92; the smooth shapes stay near 1 and the star, whose
+        # many features feel any change most, scores lowest.
+        assert scores["rounded-triangle"] > 0.99 and scores["three-faced-blunt"] > 0.99
+        assert 0.8 < scores["six-pointed-star"] < min(scores["rounded-triangle"], scores["three-faced-blunt"])
+
+
+@given(alpha=st.floats(0, 360, exclude_max=True), index=st.integers(0, 13))
+def test_a_turned_shape_comes_back_with_its_angle(default_lib, default_specs, alpha, index):
+    spec = default_specs[index]
+    m = match_radii(turned_radii(spec.params, alpha), default_lib)
+    assert m.nearest == spec.name
+    order = int(default_lib.symmetry[index])
+    if order != 0:
+        assert folded_error(m.angle_deg, alpha, order) <= 1.0
+    assert 0.0 <= m.angle_deg < 360.0
+
+
+@given(scale=st.floats(1e-3, 1e5), alpha=st.floats(0, 360))
+def test_scale_never_changes_a_match(default_lib, scale, alpha):
+    radii = turned_radii(SuperformulaParams(5, 5, 2, 7, 7), alpha)
+    a, b = match_radii(radii, default_lib), match_radii(radii * scale, default_lib)
+    assert a.nearest == b.nearest
+    assert a.mscore == pytest.approx(b.mscore, abs=1e-9)
+    # Equally good angles of a symmetric shape may swap on rounding.
+    assert folded_error(a.angle_deg, b.angle_deg, a.symmetry) < 1e-6
+    np.testing.assert_allclose(a.distances, b.distances, rtol=1e-7, atol=1e-12)
+
+
+@pytest.mark.parametrize(
+    "face_config",
+    [
+        FaceConfig(),
+        FaceConfig(kind="radii"),
+        FaceConfig(kind="information-shape", reference=PAPER_SHAPES["six-pointed-star"]),
+    ],
+)
+def test_fourier_scan_equals_scoring_every_rotation(face_config):
+    shapes = [ShapeSpec(n, p) for n, p in PAPER_SHAPES.items()] + [
+        ShapeSpec("egg", SuperformulaParams(1, 1, 0.75, 0.75, 0.75))
+    ]
+    lib = Library.from_shapes(shapes, face_config=face_config)
+    rng = np.random.default_rng(3)
+    sample = shape_radii(SuperformulaParams(5, 5, 2, 7, 7), 360) * (1 + 0.05 * rng.normal(size=360))
+    faces = information_face(np.stack([np.roll(sample, -a) for a in range(360)]), face_config)
+    eps = lib.basis.distances(faces)
+    dffs = lib.basis.residual(faces)
+    scale = float(np.abs(eps).max())
+    np.testing.assert_allclose(rotation_scores(sample, lib, metric="eigenspace"), eps, atol=1e-9 * scale)
+    whole = np.sqrt(eps**2 + dffs[:, None] ** 2)
+    np.testing.assert_allclose(rotation_scores(sample, lib, metric="face"), whole, atol=1e-9 * scale)
+
+
+def test_cartesian_grid_agrees_with_the_polar_grid(default_specs):
+    shapes = default_specs[:6]
+    polar = Library.from_shapes(shapes)
+    cartesian = Library.from_shapes(shapes, face_config=FaceConfig(grid="cartesian", cartesian_size=48))
+    rng = np.random.default_rng(11)
+    for spec in shapes:
+        noisy = turned_radii(spec.params, 40.0) * (1 + 0.05 * rng.normal(size=360))
+        a, b = match_radii(noisy, polar), match_radii(noisy, cartesian)
+        assert a.nearest == b.nearest == spec.name
+        assert abs(a.mscore - b.mscore) < 0.1
+
+
+def test_without_the_scan_the_sample_is_matched_as_it_lies(paper_lib):
+    radii = shape_radii(PAPER_SHAPES["six-pointed-star"], 360)
+    m = match_radii(np.roll(radii, 30), paper_lib, MatchConfig(scan=False))
+    # A star turned half its period is far from itself (paper Fig. 13's dip)...
+    assert m.mscore < 0.9 and m.angle_deg == 0.0
+    # ...and the scan finds it again.
+    scanned = match_radii(np.roll(radii, 30), paper_lib)
+    assert scanned.mscore == pytest.approx(1.0, abs=1e-9)
+    assert folded_error(scanned.angle_deg, 30.0, 6) < 1e-6
+
+
+def test_cutoffs_decide_interesting_but_not_nearest(paper_lib):
+    radii = shape_radii(PAPER_NEAR["six-pointed-star"], 360)
+    strict = match_radii(radii, paper_lib, MatchConfig(mscore_cutoff=0.99))
+    assert strict.nearest == "six-pointed-star" and strict.match is None and not strict.interesting
+    tight = match_radii(radii, paper_lib, MatchConfig(distance_cutoff=1e-6, mscore_cutoff=0.0))
+    assert not tight.interesting
+    loose = match_radii(radii, paper_lib, MatchConfig(distance_cutoff=1.0, mscore_cutoff=0.5))
+    assert loose.interesting and loose.match == "six-pointed-star"
+
+
+def test_match_record_has_the_interface_keys(paper_lib):
+    record = match_radii(shape_radii(PAPER_SHAPES["rounded-triangle"], 360), paper_lib).to_dict()
+    assert {"match", "nearest", "mscore", "distance", "angle_deg", "interesting"} <= set(record)
+    assert isinstance(record["interesting"], bool) and isinstance(record["mscore"], float)
+
+
+@pytest.mark.parametrize(
+    ("radii", "message"),
+    [
+        (np.ones(100), "360 values"),
+        (np.ones((2, 360)), "1-D array"),
+        (np.full(360, np.nan), "finite"),
+        (-np.ones(360), "non-negative"),
+        (np.zeros(360), "not all zero"),
+    ],
+)
+def test_bad_samples_are_rejected(paper_lib, radii, message):
+    with pytest.raises(ParameterError, match=message):
+        match_radii(radii, paper_lib)
+
+
+def test_bad_match_settings_are_rejected():
+    with pytest.raises(ParameterError, match="metric must be one of"):
+        MatchConfig(metric="cosine")
+    with pytest.raises(ParameterError, match="distance_cutoff"):
+        MatchConfig(distance_cutoff=float("nan"))
+
+
+def test_reported_distance_is_the_ranked_distance(default_lib, default_specs):
+    rng = np.random.default_rng(5)
+    for spec in default_specs[:5]:
+        noisy = turned_radii(spec.params, 70.0) * (1 + 0.05 * rng.normal(size=360))
+        m = match_radii(noisy, default_lib)
+        assert MatchConfig().resolved_metric(default_lib) == "eigenspace"
+        k = default_lib.index(m.nearest)
+        assert m.distance == m.distances[k] == m.distances.min()
+        assert m.mscore == pytest.approx(1 - m.distances[k] / m.distances.mean())
+
+
+def test_a_two_shape_library_is_matched_by_whole_faces():
+    # One eigenface: a turned sample's projection can reach either shape, so
+    # "auto" ranks by the whole-face distance.
+    lib = Library.from_shapes([ShapeSpec("disc", SuperformulaParams(0, 0, 1, 1, 1)),
+                               ShapeSpec("blunt", PAPER_SHAPES["three-faced-blunt"])])
+    assert lib.basis.n_components == 1
+    assert MatchConfig().resolved_metric(lib) == "face"
+    rng = np.random.default_rng(8)
+    for alpha in (0.0, 17.0, 45.0, 90.0):
+        noisy = turned_radii(PAPER_SHAPES["three-faced-blunt"], alpha) * (1 + 0.01 * rng.normal(size=360))
+        assert match_radii(noisy, lib).nearest == "blunt"
+        assert match_radii(turned_radii(SuperformulaParams(0, 0, 1, 1, 1), alpha), lib).nearest == "disc"
