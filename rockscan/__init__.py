@@ -60,6 +60,14 @@ _API = {
     "render_photo": "rockscan.render",
     "render_scene": "rockscan.render",
     "random_superformula": "rockscan.render",
+    # folders
+    "TriageConfig": "rockscan.triage",
+    "TriageSummary": "rockscan.triage",
+    "triage_folder": "rockscan.triage",
+    "find_photos": "rockscan.triage",
+    "NoveltyConfig": "rockscan.novelty",
+    "ObservedShapes": "rockscan.novelty",
+    "read_rows": "rockscan.report",
     # files
     "read_image": "rockscan.io",
     "read_spec": "rockscan.io",

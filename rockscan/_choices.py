@@ -14,6 +14,8 @@ GRIDS = ("polar", "cartesian")
 METRICS = ("eigenspace", "face")
 #: What ranks library shapes: a metric, or "auto" (chosen by the library's size).
 RANK_METRICS = ("auto", *METRICS)
+#: What a novelty score measures (the whole face by default; see rockscan.novelty).
+NOVELTY_METRICS = ("face", "eigenspace")
 #: Matcher presets of the command line: rockscan's default and the paper's exact method.
 METHODS = ("default", "paper")
 #: Rock polarity settings of the segmentation.

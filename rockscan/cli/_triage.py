@@ -1,3 +1,222 @@
 """``rockscan triage``: rank a folder of photos by interest."""
 
 from __future__ import annotations
+
+import os
+import shutil
+import sys
+import tempfile
+from typing import Any
+
+import click
+
+from rockscan._choices import NOVELTY_METRICS
+from rockscan.cli import _errors, _library_option, _load_library, _match_config, _match_options, main
+
+
+@main.command("triage")
+@click.argument("folder", type=click.Path())
+@click.option(
+    "-o",
+    "--output",
+    "report_path",
+    type=click.Path(dir_okay=False),
+    default=None,
+    help="Report: .csv, .jsonl (JSON lines) or .html, by its ending. "
+    "Default: the ranked JSON lines on standard output.",
+)
+@_library_option
+@_match_options
+@click.option(
+    "-j",
+    "--workers",
+    type=click.IntRange(min=1),
+    default=None,
+    help="Worker processes on this machine (default: every core).",
+)
+@click.option(
+    "--scheduler",
+    default=None,
+    metavar="ADDRESS",
+    help="Classify on a Dask distributed cluster (tcp://host:8786); its workers must see FOLDER.",
+)
+@click.option("--resume", is_flag=True, help="Continue the report: skip photos already in it.")
+@click.option("--overwrite", is_flag=True, help="Replace an existing report.")
+@click.option(
+    "--observed",
+    "observed_path",
+    type=click.Path(dir_okay=False),
+    default=None,
+    help="Observed library (.npz) for novelty: created from the library if missing, "
+    "grown by every novel rock, kept between runs.",
+)
+@click.option(
+    "--novelty-threshold",
+    type=click.FloatRange(min=0),
+    default=None,
+    help="Novelty above which a rock is novel (default: half the median spacing of the library's shapes).",
+)
+@click.option(
+    "--novelty-metric",
+    type=click.Choice(NOVELTY_METRICS),
+    default="face",
+    show_default=True,
+    help="'face': whole-face distance; 'eigenspace': the paper's distance within face space only.",
+)
+@click.option(
+    "--html-limit",
+    type=click.IntRange(min=1),
+    default=2000,
+    show_default=True,
+    help="Photos an HTML report shows (its .jsonl beside it keeps all).",
+)
+@click.option("-q", "--quiet", is_flag=True, help="No progress bar and no summary.")
+@_errors
+def triage(
+    folder: str,
+    report_path: str | None,
+    library_path: str | None,
+    method: str,
+    metric: str | None,
+    angle_metric: str | None,
+    distance_cutoff: float | None,
+    mscore_cutoff: float | None,
+    no_scan: bool,
+    workers: int | None,
+    scheduler: str | None,
+    resume: bool,
+    overwrite: bool,
+    observed_path: str | None,
+    novelty_threshold: float | None,
+    novelty_metric: str,
+    html_limit: int,
+    quiet: bool,
+) -> None:
+    """Rank every photo under FOLDER by interest and write a report.
+
+    Interest is MScore times the matched shape's interest (a spec shape's
+    'interest = <number>', default 1); a rock with no match scores 0. Rows are
+    written as photos finish, so an interrupted run keeps them: run again with
+    --resume to finish it.
+
+    Exit status: 0 when every photo was classified, 1 when any could not be.
+    """
+    from rockscan.novelty import NoveltyConfig
+    from rockscan.pipeline import ClassifyConfig
+    from rockscan.triage import TriageConfig, triage_folder
+
+    if workers is not None and scheduler is not None:
+        raise click.UsageError("give -j/--workers or --scheduler, not both")
+    if resume and overwrite:
+        raise click.UsageError("give --resume or --overwrite, not both")
+    if resume and report_path is None:
+        raise click.UsageError("--resume needs the report to continue: -o REPORT")
+    if report_path is not None:
+        from rockscan.errors import ParameterError
+        from rockscan.report import report_format
+
+        try:
+            report_format(report_path)
+        except ParameterError as exc:
+            raise click.BadParameter(str(exc), param_hint="-o/--output") from None
+    lib = _load_library(library_path)
+    config = TriageConfig(
+        classify=ClassifyConfig(
+            match=_match_config(method, metric, angle_metric, distance_cutoff, mscore_cutoff, no_scan)
+        ),
+        workers=workers,
+        scheduler=scheduler,
+        resume=resume,
+        overwrite=overwrite,
+        novelty=NoveltyConfig(threshold=novelty_threshold, metric=novelty_metric),
+        html_limit=html_limit,
+    )
+    bar = _ProgressBar(enabled=not quiet and sys.stderr.isatty())
+    scratch = None if report_path is not None else tempfile.mkdtemp(prefix="rockscan-triage-")
+    target = report_path if scratch is None else os.path.join(scratch, "triage.jsonl")
+    try:
+        try:
+            summary = triage_folder(folder, target, lib, config, observed=observed_path, progress=bar)
+        except KeyboardInterrupt:
+            bar.close()
+            _print_ranked(scratch, target)
+            hint = "stopped"
+            if report_path:
+                hint = f"{report_path} keeps them; run again with --resume to finish"
+            click.echo(f"rockscan: interrupted after {bar.done} photos: {hint}", err=True)
+            sys.exit(130)
+        finally:
+            bar.close()
+        _print_ranked(scratch, target)
+    finally:
+        if scratch is not None:
+            shutil.rmtree(scratch, ignore_errors=True)
+    if not quiet:
+        _print_summary(summary, folder, to_stderr=report_path is None)
+    sys.exit(1 if summary.failed else 0)
+
+
+def _print_ranked(scratch: str | None, target: str) -> None:
+    """Without -o, the ranked rows go to standard output."""
+    if scratch is not None and os.path.exists(target):
+        with open(target, encoding="utf-8") as fh:
+            shutil.copyfileobj(fh, sys.stdout)
+        sys.stdout.flush()
+
+
+class _ProgressBar:
+    """tqdm on a terminal, created at the first call (when the total is known)."""
+
+    def __init__(self, *, enabled: bool) -> None:
+        self.enabled = enabled
+        self.done = 0
+        self._bar: Any = None
+
+    def __call__(self, done: int, total: int) -> None:
+        self.done = done
+        if not self.enabled:
+            return
+        if self._bar is None:
+            import tqdm
+
+            # No monitor thread: worker processes are started while the bar runs.
+            tqdm.tqdm.monitor_interval = 0
+            self._bar = tqdm.tqdm(total=total, unit="photo", file=sys.stderr, dynamic_ncols=True)
+        self._bar.update(done - self._bar.n)
+
+    def close(self) -> None:
+        if self._bar is not None:
+            self._bar.close()
+            self._bar = None
+
+
+def _print_summary(summary: Any, folder: str, *, to_stderr: bool) -> None:
+    def echo(text: str = "") -> None:
+        click.echo(text, err=to_stderr)
+
+    echo(
+        f"triage of {folder}: {summary.n_found} photos found, {summary.n_resumed} already in the report, "
+        f"{summary.n_processed} classified in {summary.elapsed_s:.1f} s"
+    )
+    where = "" if to_stderr else f"{summary.report}: "
+    line = (
+        f"{where}{summary.n_rows - summary.n_errors} ranked, {summary.n_errors} errors; "
+        f"{summary.n_interesting} interesting in this run"
+    )
+    if summary.n_observed is not None:
+        line += f"; {summary.n_novel} novel (observed library: {summary.n_observed} shapes)"
+    echo(line)
+    if summary.top:
+        echo(f"top {len(summary.top)}:")
+        echo(f"  {'rank':>4} {'interest':>8} {'MScore':>6} {'angle':>6}  {'match':<20} photo")
+        for row in summary.top:
+            echo(
+                f"  {row['rank']:>4} {row['interest']:>8.3f} {row['mscore']:>6.3f} {row['angle_deg']:>6.1f}  "
+                f"{(row['match'] or '-'):<20} {row['path']}"
+            )
+    if summary.n_errors:
+        more = f", first {len(summary.errors)}" if summary.n_errors > len(summary.errors) else ""
+        echo(f"errors ({summary.n_errors}{more}):")
+        for row in summary.errors:
+            message = row["error"]
+            echo(f"  {message}" if message.startswith(row["path"]) else f"  {row['path']}: {message}")

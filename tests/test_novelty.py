@@ -1,0 +1,225 @@
+"""Novelty against the shapes observed so far (paper Section V)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from conftest import PAPER_SHAPES
+from hypothesis import given
+from hypothesis import strategies as st
+
+from rockscan.errors import LibraryError, ParameterError
+from rockscan.information import FaceConfig, information_face
+from rockscan.io import load_library, save_library
+from rockscan.library import Library, ShapeSpec, shape_radii
+from rockscan.novelty import (
+    NoveltyConfig,
+    ObservedShapes,
+    default_threshold,
+    observed_name,
+)
+from rockscan.pipeline import classify_image
+from rockscan.render import RenderConfig, random_superformula, render_photo
+from rockscan.superformula import SuperformulaParams
+
+#: Shapes unlike every shape of the default library (novelty 0.46 to 0.62 at 360 rays).
+NEW_SHAPES = {
+    "four-lobe": SuperformulaParams(4, 4, 0.6, 1, 1),
+    "eight-lobe": SuperformulaParams(8, 8, 6, 10, 10),
+}
+
+
+@pytest.fixture(scope="module")
+def small_lib() -> Library:
+    """The paper's three shapes at 72 rays: small enough for brute-force oracles."""
+    config = FaceConfig(n_angles=72)
+    return Library.from_shapes([ShapeSpec(n, p) for n, p in PAPER_SHAPES.items()], face_config=config)
+
+
+def _brute_force_distances(radii, library):
+    """min over rotations of ||face(sample turned) - face_k|| for each shape k, from faces alone."""
+    config = library.face_config
+    turned = np.stack([np.roll(radii, -a) for a in range(config.n_angles)])
+    faces = information_face(turned, config).reshape(config.n_angles, -1)
+    targets = library.faces().reshape(len(library), -1)
+    diff = faces[:, None, :] - targets[None, :, :]
+    return np.sqrt(np.einsum("akp,akp->ak", diff, diff)).min(axis=0)
+
+
+# ---------------------------------------------------------------- tiny exact cases
+
+
+@pytest.mark.parametrize(
+    ("stem", "taken", "expected"),
+    [
+        ("0012-Rounded Triangle", set(), "seen-0012-rounded-triangle"),
+        ("IMG_0001", {"seen-img-0001"}, "seen-img-0001-2"),
+        ("IMG_0001", {"seen-img-0001", "seen-img-0001-2"}, "seen-img-0001-3"),
+        ("__", set(), "seen-rock"),
+        ("é€", set(), "seen-rock"),
+    ],
+)
+def test_observed_names_are_valid_and_unique(stem, taken, expected):
+    assert observed_name(stem, taken) == expected
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "message"),
+    [
+        ({"metric": "cosine"}, "novelty metric must be one of face, eigenspace"),
+        ({"metric": "auto"}, "novelty metric must be one of face, eigenspace"),
+        ({"threshold": -0.1}, "non-negative number"),
+        ({"threshold": float("nan")}, "non-negative number"),
+    ],
+)
+def test_novelty_config_names_the_fix(kwargs, message):
+    with pytest.raises(ParameterError, match=message):
+        NoveltyConfig(**kwargs)
+
+
+def test_a_new_observed_library_starts_with_the_library_shapes(small_lib):
+    observed = ObservedShapes.from_library(small_lib)
+    assert observed.library.names == small_lib.names
+    assert observed.n_seed == 3 and observed.n_observed == 0
+    np.testing.assert_allclose(observed.library.faces(), small_lib.faces(), atol=1e-12)
+
+
+def test_a_known_shape_is_not_new_and_its_distance_is_zero(small_lib):
+    observed = ObservedShapes.from_library(small_lib)
+    for k, name in enumerate(small_lib.names):
+        novelty = observed.assess(small_lib.radii[k])
+        assert novelty.nearest == name
+        assert novelty.score == pytest.approx(0.0, abs=1e-6)
+        assert not novelty.novel
+
+
+# ---------------------------------------------------------------- oracles and theory
+
+
+def test_score_is_the_whole_face_distance_to_the_nearest_shape(small_lib):
+    observed = ObservedShapes.from_library(small_lib, NoveltyConfig(threshold=0.1))
+    rng = np.random.default_rng(3)
+    for _ in range(3):
+        radii = shape_radii(random_superformula(rng), 72)
+        expected = _brute_force_distances(radii, observed.library)
+        novelty = observed.assess(radii)
+        assert novelty.score == pytest.approx(expected.min(), rel=1e-9, abs=1e-12)
+        assert novelty.nearest == small_lib.names[int(np.argmin(expected))]
+        assert novelty.novel == (expected.min() > 0.1)
+
+
+def test_default_threshold_is_half_the_median_library_spacing(small_lib):
+    spacing = []
+    for k in range(len(small_lib)):
+        dist = _brute_force_distances(small_lib.radii[k], small_lib)
+        dist[k] = np.inf
+        spacing.append(dist.min())
+    assert default_threshold(small_lib) == pytest.approx(0.5 * np.median(spacing), rel=1e-9)
+
+
+def test_default_threshold_of_the_builtin_library(default_lib):
+    # The figure docs/triage.md quotes.
+    assert default_threshold(default_lib) == pytest.approx(0.133, abs=0.002)
+
+
+@given(seed=st.integers(0, 2**32 - 1))
+def test_the_eigenspace_distance_never_exceeds_the_face_distance(small_lib, seed):
+    # eps leaves out the distance from face space, which is what makes a shape new.
+    radii = shape_radii(random_superformula(seed), 72)
+    face = ObservedShapes.from_library(small_lib, NoveltyConfig(metric="face")).assess(radii)
+    eps = ObservedShapes.from_library(small_lib, NoveltyConfig(metric="eigenspace")).assess(radii)
+    assert eps.score <= face.score + 1e-9
+
+
+def test_the_eigenspace_distance_misses_what_the_library_does_not_span():
+    # A two-shape library spans one direction of face space: a shape unlike
+    # both can sit close to that line while its face is far from both faces.
+    config = FaceConfig(n_angles=72)
+    pair = Library.from_shapes(
+        [
+            ShapeSpec("circle", SuperformulaParams(0, 0, 1, 1, 1)),
+            ShapeSpec(*next(iter(PAPER_SHAPES.items()))),
+        ],
+        face_config=config,
+    )
+    radii = shape_radii(NEW_SHAPES["eight-lobe"], 72)
+    face = ObservedShapes.from_library(pair, NoveltyConfig(metric="face")).assess(radii)
+    eps = ObservedShapes.from_library(pair, NoveltyConfig(metric="eigenspace")).assess(radii)
+    assert face.score > 3 * eps.score
+
+
+# ---------------------------------------------------------------- invariance and round trips
+
+
+@given(shift=st.integers(0, 71), scale=st.floats(0.2, 50.0))
+def test_novelty_ignores_turn_and_size(small_lib, shift, scale):
+    observed = ObservedShapes.from_library(small_lib)
+    radii = shape_radii(NEW_SHAPES["four-lobe"], 72)
+    base = observed.assess(radii)
+    moved = observed.assess(scale * np.roll(radii, shift))
+    assert moved.score == pytest.approx(base.score, rel=1e-7)
+    assert moved.nearest == base.nearest
+
+
+def test_adding_a_shape_returns_a_new_object_that_knows_it(small_lib):
+    observed = ObservedShapes.from_library(small_lib, NoveltyConfig(threshold=0.1))
+    radii = shape_radii(NEW_SHAPES["four-lobe"], 72)
+    first = observed.assess(radii)
+    assert first.novel
+    grown = observed.with_shape("seen-four-lobe", radii)
+    assert observed.library.names == small_lib.names
+    assert grown.library.names == (*small_lib.names, "seen-four-lobe")
+    assert grown.n_seed == 3 and grown.n_observed == 1
+    again = grown.assess(np.roll(radii, 17))
+    assert again.nearest == "seen-four-lobe" and again.score == pytest.approx(0.0, abs=1e-6)
+    assert not again.novel
+
+
+def test_observed_library_survives_save_and_load(tmp_path, small_lib):
+    grown = ObservedShapes.from_library(small_lib).with_shape(
+        "seen-four-lobe", shape_radii(NEW_SHAPES["four-lobe"], 72)
+    )
+    path = tmp_path / "observed.npz"
+    save_library(grown.library, path)
+    loaded = ObservedShapes.from_file(load_library(path), small_lib)
+    assert loaded.library.names == grown.library.names
+    assert (loaded.n_seed, loaded.n_observed) == (3, 1)
+    assert loaded.threshold == grown.threshold
+    probe = shape_radii(NEW_SHAPES["eight-lobe"], 72)
+    assert loaded.assess(probe).score == pytest.approx(grown.assess(probe).score, rel=1e-9)
+
+
+def test_an_observed_library_of_other_face_settings_is_refused(small_lib, paper_lib):
+    with pytest.raises(LibraryError, match=r"other face settings.*start a new observed library"):
+        ObservedShapes.from_file(paper_lib, small_lib)
+
+
+def test_radii_of_the_wrong_length_are_refused(small_lib):
+    with pytest.raises(ParameterError, match="72 values"):
+        ObservedShapes.from_library(small_lib).with_shape("seen-x", np.ones(360))
+
+
+# ---------------------------------------------------------------- rendered truth
+
+
+def test_rendered_rocks_new_shapes_are_novel_once(default_lib):
+    """Photos of library shapes are not new; the first photo of an unknown
+    shape is, and a second photo of it (turned, lit differently) is not."""
+    config = RenderConfig(rows=240, cols=320)
+    observed = ObservedShapes.from_library(default_lib)
+
+    def radii(params, seed):
+        (rock,) = classify_image(render_photo(params, config, rng=seed).pixels, default_lib)
+        return rock.radii
+
+    for name in ("egg", "three-faced-blunt", "six-pointed-star"):
+        params = default_lib.params[default_lib.index(name)]
+        novelty = observed.assess(radii(params, 11))
+        assert not novelty.novel, (name, novelty)
+        assert novelty.nearest == name
+    for name, params in NEW_SHAPES.items():
+        first = observed.assess(radii(params, 21))
+        assert first.novel and first.score > 2 * observed.threshold, (name, first)
+        grown = observed.with_shape(f"seen-{name}", radii(params, 21))
+        second = grown.assess(radii(params, 22))
+        assert not second.novel and second.nearest == f"seen-{name}", (name, second)
