@@ -18,5 +18,7 @@ RANK_METRICS = ("auto", *METRICS)
 NOVELTY_METRICS = ("face", "eigenspace")
 #: Matcher presets of the command line: rockscan's default and the paper's exact method.
 METHODS = ("default", "paper")
+#: Rock polarity of a rendered photo ("random" draws it per photo).
+RENDER_POLARITIES = ("random", "light", "dark")
 #: Rock polarity settings of the segmentation.
 POLARITIES = ("auto", "dark", "light")

@@ -7,6 +7,7 @@ import os
 
 import click
 
+from rockscan._choices import RENDER_POLARITIES
 from rockscan.cli import _errors, main
 
 # ---------------------------------------------------------------- render
@@ -48,7 +49,7 @@ from rockscan.cli import _errors, main
 @click.option("--angle", type=float, default=None, help="Rotation in degrees (default: random).")
 @click.option(
     "--polarity",
-    type=click.Choice(["random", "light", "dark"]),
+    type=click.Choice(RENDER_POLARITIES),
     default="random",
     show_default=True,
     help="Rock lighter or darker than the ground.",
