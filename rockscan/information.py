@@ -214,8 +214,9 @@ def section_probabilities(centers: ArrayLike, edges: ArrayLike, sigma: float) ->
     # or a complement of two such tails, so nothing cancels.
     tail = ndtr(-np.abs(z))
     lo, hi = tail[..., :-1], tail[..., 1:]
-    z_lo, z_hi = z[..., :-1], z[..., 1:]
-    return np.where(z_hi <= 0, hi - lo, np.where(z_lo >= 0, lo - hi, 1.0 - lo - hi))
+    # Both ends on one side of the mean: the difference of the tails; across it: the complement.
+    straddle = (z[..., :-1] < 0) & (z[..., 1:] > 0)
+    return np.where(straddle, 1.0 - lo - hi, np.abs(hi - lo))
 
 
 def shannon_bits(p: ArrayLike) -> NDArray[np.float64]:

@@ -148,6 +148,15 @@ def main() -> None:
     Thangavelautham): nearest shape, match quality (MScore), rotation, and
     whether the sample is worth keeping.
     """
+    # rockscan's matrices are small and it parallelises across photos: BLAS
+    # threads would only contend (and make results depend on the thread count
+    # in the last digit). Set before numpy loads; the user's own setting wins.
+    for name in _BLAS_THREAD_VARIABLES:
+        os.environ.setdefault(name, "1")
+
+
+#: Environment variables that set the BLAS libraries' thread counts.
+_BLAS_THREAD_VARIABLES = ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS")
 
 
 def _register() -> None:
