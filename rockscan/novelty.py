@@ -40,7 +40,7 @@ from rockscan._choices import NOVELTY_METRICS
 from rockscan.errors import LibraryError, ParameterError
 from rockscan.information import information_face
 from rockscan.library import Library
-from rockscan.match import rotation_scores
+from rockscan.match import MatchConfig, match_radii, rotation_scores
 
 __all__ = [
     "NOVELTY_METRICS",
@@ -261,10 +261,11 @@ class ObservedShapes:
         -------
         Novelty
         """
-        dist = rotation_scores(radii, self.library, metric=self.metric).min(axis=0)
-        k = int(np.argmin(dist))
-        score = float(dist[k])
-        return Novelty(score=score, nearest=self.library.names[k], novel=score > self.threshold)
+        # match_radii gives every shape's distance at its best rotation, the
+        # nearest one recomputed exactly (a known shape scores 0, not ~1e-6).
+        match = match_radii(radii, self.library, MatchConfig(metric=self.metric))
+        score = float(match.distances[self.library.index(match.nearest)])
+        return Novelty(score=score, nearest=match.nearest, novel=score > self.threshold)
 
     def with_shape(self, name: str, radii: ArrayLike) -> ObservedShapes:
         """A copy that also knows one more shape.

@@ -223,7 +223,20 @@ class RenderedPhoto:
 
 
 def random_superformula(rng: np.random.Generator | int | None = None) -> SuperformulaParams:
-    """A random closed, rock-like Superformula shape (m1 = m2, a = b = 1)."""
+    """A random closed, rock-like Superformula shape (m1 = m2, a = b = 1).
+
+    Parameters
+    ----------
+    rng : numpy.random.Generator, int or None
+        Source of randomness.
+
+    Returns
+    -------
+    SuperformulaParams
+        m from 1 to 8; n1, n2 log-uniform in [0.3, 20]; n3 = n2 in 60% of
+        draws, else drawn alike; only bounded outlines whose longest radius is
+        under 3.5 times the shortest (a rock, not a needle).
+    """
     rng = np.random.default_rng(rng)
     from rockscan.library import shape_radii
 
