@@ -188,3 +188,15 @@ def test_a_two_shape_library_is_matched_by_whole_faces():
         noisy = turned_radii(PAPER_SHAPES["three-faced-blunt"], alpha) * (1 + 0.01 * rng.normal(size=360))
         assert match_radii(noisy, lib).nearest == "blunt"
         assert match_radii(turned_radii(SuperformulaParams(0, 0, 1, 1, 1), alpha), lib).nearest == "disc"
+
+
+def test_the_residual_cutoff_rejects_samples_far_from_face_space(default_lib, default_specs):
+    radii = turned_radii(default_specs[4].params, 10.0)
+    rng = np.random.default_rng(2)
+    noisy = radii * (1 + 0.08 * rng.normal(size=360))
+    m = match_radii(noisy, default_lib)
+    assert m.residual > 0
+    assert not match_radii(noisy, default_lib, MatchConfig(residual_cutoff=0.5 * m.residual)).interesting
+    kept = match_radii(noisy, default_lib, MatchConfig(residual_cutoff=2 * m.residual, distance_cutoff=10.0,
+                                                        mscore_cutoff=-1.0))
+    assert kept.interesting

@@ -60,6 +60,7 @@ def _library_option(func: Callable[..., Any]) -> Callable[..., Any]:
 
 
 def _match_options(func: Callable[..., Any]) -> Callable[..., Any]:
+    """Add the matcher's options; the command receives them as ``match_config``."""
     options = [
         click.option(
             "--method",
@@ -85,7 +86,7 @@ def _match_options(func: Callable[..., Any]) -> Callable[..., Any]:
             "--distance-cutoff",
             type=float,
             default=None,
-            help="Largest eigenspace distance of an interesting match (the paper's theta).",
+            help="Largest distance of an interesting match (the paper's theta).",
         ),
         click.option(
             "--mscore-cutoff",
@@ -94,32 +95,44 @@ def _match_options(func: Callable[..., Any]) -> Callable[..., Any]:
             help="MScore an interesting match must exceed (the paper's gamma).",
         ),
         click.option(
+            "--residual-cutoff",
+            type=float,
+            default=None,
+            help="Largest distance from face space of an interesting match (Turk & Pentland).",
+        ),
+        click.option(
             "--no-scan", is_flag=True, help="Match the outline as it lies, without the rotation scan."
         ),
     ]
+
+    @functools.wraps(func)
+    def wrapper(
+        *args: Any,
+        method: str,
+        metric: str | None,
+        angle_metric: str | None,
+        distance_cutoff: float | None,
+        mscore_cutoff: float | None,
+        residual_cutoff: float | None,
+        no_scan: bool,
+        **kwargs: Any,
+    ) -> Any:
+        from rockscan.match import MatchConfig
+
+        paper = method == "paper"
+        kwargs["match_config"] = MatchConfig(
+            metric=metric or ("eigenspace" if paper else "auto"),
+            angle_metric=angle_metric or ("eigenspace" if paper else "face"),
+            distance_cutoff=distance_cutoff,
+            mscore_cutoff=mscore_cutoff,
+            residual_cutoff=residual_cutoff,
+            scan=not no_scan,
+        )
+        return func(*args, **kwargs)
+
     for option in reversed(options):
-        func = option(func)
-    return func
-
-
-def _match_config(
-    method: str,
-    metric: str | None,
-    angle_metric: str | None,
-    distance_cutoff: float | None,
-    mscore_cutoff: float | None,
-    no_scan: bool,
-) -> Any:
-    from rockscan.match import MatchConfig
-
-    paper = method == "paper"
-    return MatchConfig(
-        metric=metric or ("eigenspace" if paper else "auto"),
-        angle_metric=angle_metric or ("eigenspace" if paper else "face"),
-        distance_cutoff=distance_cutoff,
-        mscore_cutoff=mscore_cutoff,
-        scan=not no_scan,
-    )
+        wrapper = option(wrapper)
+    return wrapper
 
 
 def _load_library(path: str | None) -> Any:

@@ -9,7 +9,7 @@ from typing import Any
 
 import click
 
-from rockscan.cli import _errors, _library_option, _load_library, _match_config, _match_options, main
+from rockscan.cli import _errors, _library_option, _load_library, _match_options, main
 
 # ---------------------------------------------------------------- match (no photo)
 
@@ -40,12 +40,7 @@ def match_cmd(
     radii_path: str | None,
     rotate: float,
     library_path: str | None,
-    method: str,
-    metric: str | None,
-    angle_metric: str | None,
-    distance_cutoff: float | None,
-    mscore_cutoff: float | None,
-    no_scan: bool,
+    match_config: Any,
     as_json: bool,
 ) -> None:
     """Match an outline given as Superformula parameters or radii, without a photo."""
@@ -75,8 +70,7 @@ def match_cmd(
             radii = resample_radii(radii, n)
     if rotate:
         radii = rotate_radii(radii, rotate)
-    config = _match_config(method, metric, angle_metric, distance_cutoff, mscore_cutoff, no_scan)
-    result = match_radii(radii, lib, config)
+    result = match_radii(radii, lib, match_config)
     record = {"source": params_text or radii_path, **result.to_dict()}
     if as_json:
         click.echo(json.dumps(record))
@@ -118,12 +112,7 @@ _COLUMNS = (
 def classify(
     photos: tuple[str, ...],
     library_path: str | None,
-    method: str,
-    metric: str | None,
-    angle_metric: str | None,
-    distance_cutoff: float | None,
-    mscore_cutoff: float | None,
-    no_scan: bool,
+    match_config: Any,
     as_json: bool,
     all_rocks: bool,
     plot_path: str | None,
@@ -145,9 +134,7 @@ def classify(
         if not os.path.isdir(folder):
             raise click.BadParameter(f"folder {folder!r} does not exist", param_hint="--plot")
     lib = _load_library(library_path)
-    config = ClassifyConfig(
-        match=_match_config(method, metric, angle_metric, distance_cutoff, mscore_cutoff, no_scan)
-    )
+    config = ClassifyConfig(match=match_config)
     failed = 0
     targets = _plot_targets(plot_path, photos) if plot_path else {}
     if not as_json:

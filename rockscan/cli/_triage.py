@@ -11,7 +11,7 @@ from typing import Any
 import click
 
 from rockscan._choices import NOVELTY_METRICS
-from rockscan.cli import _errors, _library_option, _load_library, _match_config, _match_options, main
+from rockscan.cli import _errors, _library_option, _load_library, _match_options, main
 
 
 @main.command("triage")
@@ -76,12 +76,7 @@ def triage(
     folder: str,
     report_path: str | None,
     library_path: str | None,
-    method: str,
-    metric: str | None,
-    angle_metric: str | None,
-    distance_cutoff: float | None,
-    mscore_cutoff: float | None,
-    no_scan: bool,
+    match_config: Any,
     workers: int | None,
     scheduler: str | None,
     resume: bool,
@@ -121,9 +116,7 @@ def triage(
             raise click.BadParameter(str(exc), param_hint="-o/--output") from None
     lib = _load_library(library_path)
     config = TriageConfig(
-        classify=ClassifyConfig(
-            match=_match_config(method, metric, angle_metric, distance_cutoff, mscore_cutoff, no_scan)
-        ),
+        classify=ClassifyConfig(match=match_config),
         workers=workers,
         scheduler=scheduler,
         resume=resume,
