@@ -128,11 +128,12 @@ def measure_rocks(
     rocks : list of (Outline, radii)
     """
     seg = segment(pixels, config, all_rocks=all_rocks)
+    # One map covers both reductions: a working pixel spans seg.scale_rowcol * scale
+    # photo pixels whether the photo was decoded at full or reduced size.
+    pixel_scale = np.asarray(seg.scale_rowcol) * scale
     rocks = []
-    for index in range(1, seg.n_rocks + 1):
-        # One map covers both reductions: a working pixel spans seg.scale * scale
-        # photo pixels whether the photo was decoded at full or reduced size.
-        outline = trace_outline(seg.mask(index), scale=seg.scale * scale)
+    for rock in seg.rocks:
+        outline = trace_outline(rock.coverage, scale=pixel_scale, origin_rowcol=rock.origin_rowcol)
         radii = contour_radii(outline.contour_rowcol, outline.centroid_rowcol, n_angles)
         rocks.append((outline, radii))
     return seg, rocks
@@ -188,6 +189,25 @@ def classify_path(
 ) -> PhotoResult:
     """Read a photo and classify it; a bad photo gives an error result, never an exception.
 
+    Parameters
+    ----------
+    path : path-like
+        A PNG, JPEG, TIFF or BMP photo (see :func:`rockscan.io.read_image`).
+        Photos larger than twice the segmentation's ``work_size`` are decoded
+        at reduced size; outlines and centroids still come back in the full
+        photo's pixels.
+    library : Library
+    config : ClassifyConfig, optional
+    all_rocks : bool
+        Classify every rock, not only the main one.
+
+    Returns
+    -------
+    PhotoResult
+        With the rocks, or with ``error`` set to a one-line message.
+
+    Notes
+    -----
     Only :class:`rockscan.errors.RockscanError` becomes an error result: anything
     else is a bug and propagates.
     """
@@ -212,6 +232,22 @@ def library_from_spec(
     """Build a library from spec shapes, reading the example photos of shapes
     given by ``images`` instead of parameters.
 
+    Parameters
+    ----------
+    shapes : list of ShapeSpec
+        Superformula shapes, or shapes given by example photos.
+    face_config : FaceConfig, optional
+    segment_config : SegmentConfig, optional
+        How the example photos are segmented.
+    n_components : int, optional
+        Keep at most this many eigenfaces (default: all non-zero).
+
+    Returns
+    -------
+    Library
+
+    Notes
+    -----
     A shape given by examples gets the mean of their faces, after turning each
     example to the first one's orientation (the rotation that best aligns
     their radii), so that the examples reinforce rather than blur each other.
@@ -265,8 +301,20 @@ def library_from_spec(
 
 
 def align_radii(radii: NDArray[np.float64]) -> NDArray[np.float64]:
-    """Turn each row of radii to the orientation of the first (best circular
-    cross-correlation of the mean-normalised radii); returns the turned rows."""
+    """Turn each row of radii to the orientation of the first.
+
+    Parameters
+    ----------
+    radii : (n_rows, n_angles) array_like of float
+        Radii at :func:`rockscan.polar.polar_angles`, one outline per row.
+
+    Returns
+    -------
+    turned : (n_rows, n_angles) ndarray of float
+        Each row shifted by the whole number of rays that best aligns it with
+        the first row (largest circular cross-correlation of the
+        mean-normalised radii); the first row unchanged.
+    """
     radii = np.asarray(radii, dtype=np.float64)
     normalized = radii / radii.mean(axis=1, keepdims=True) - 1.0
     spectra = np.fft.rfft(normalized, axis=1)

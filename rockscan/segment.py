@@ -1,38 +1,88 @@
 """Photo -> rock masks.
 
-The photo is reduced to one brightness channel at a capped working size, its
-uneven lighting is flattened, it is thresholded with the rock's polarity chosen
-automatically, and the rock is picked from the connected regions by a stated
-rule. Every step is a function of arrays.
+The rock is found on a small copy of the photo, then outlined on a larger one
+by a threshold half-way between the rock's level and the ground's. Every step
+is a function of arrays.
 
 Steps (see :func:`segment`):
 
-1. **Channel.** Luminance; for colour photos also the first principal
-   component of the colours, and the one that separates best into two classes
-   (Otsu's between-class variance over total variance) is kept. An alpha
-   channel that really cuts the rock out is used directly.
-2. **Working size.** The longer side is reduced to ``work_size`` pixels (area
-   averaging), which bounds time and memory for any photo size.
-3. **Smoothing.** A median filter, then a small Gaussian, suppress sensor noise,
-   JPEG blocks and fine texture.
-4. **Lighting.** The ground's illumination is estimated by normalised
-   convolution over pixels currently judged ground (a wide Gaussian that
-   ignores the rock) and divided out; this is repeated ``iterations`` times so
-   that a rock covering most of the frame does not bias it.
-5. **Threshold and polarity.** Otsu's threshold splits the flattened image;
-   the ground is the class that holds most of the frame's border, so the rock
-   may be lighter or darker than it.
-6. **Clean-up.** Opening removes specks and pebbles much smaller than the
-   rock; holes inside a region (texture, glints) are filled.
-7. **Choice of rock.** Regions touching the frame's border are cut off and are
-   used only if nothing else is left. The main rock is the largest remaining
-   region; ``all rocks`` are the remaining regions of at least
-   ``min_relative_area`` of the largest, in order of decreasing area.
+1. **Sizes.** The photo is halved by area averaging as often as needed, then
+   resized once more, to a detection image whose longer side is at most
+   ``detect_size`` pixels (rocks are found there) and, after detection, to a
+   working image (rocks are outlined there) on which the smallest rock found
+   spans about ``outline_radius`` pixels, with a longer side of at most
+   ``work_size`` and never coarser than the detection image. Time and memory
+   are bounded for any photo size.
+2. **Channel.** Luminance. Only if it shows no rock, the first principal
+   component of the chromaticity ``rgb / (r + g + b)`` (a rock of another hue
+   than its ground but of the same brightness). An alpha channel that really
+   cuts the rock out (5% to 98% of the frame transparent) is used directly.
+3. **Lighting.** After a median filter and a Gaussian of ``detect_sigma``
+   (sensor noise, JPEG blocks, fine texture), a polynomial surface of degree
+   ``lighting_degree`` is fitted to the ground by least squares, leaving out
+   pixels beyond 2.5 robust standard deviations of the fit: first to a band
+   along the frame's border, where the rock is not, then ``iterations`` times
+   to every pixel that is not part of a rock nor beyond ``z_grow`` from the
+   ground. From the second round on, what the polynomial misses (a dark
+   corner, a bright patch) is added as the ground's residual spread by a
+   normalised Gaussian ``lighting_sigma`` of the longer side wide. Luminance
+   is divided by the lighting (light multiplies reflectance); chromaticity,
+   which light does not change, has it subtracted.
+4. **Regions.** Each pixel's deviation from the ground is measured in robust
+   standard deviations ``z`` (median and MAD of the ground pixels, the MAD
+   taken as at least ``min_contrast / z_detect``, so that on a smooth ground
+   noise and JPEG blocks are no rock). A region
+   grows from pixels beyond ``z_detect`` through connected pixels beyond
+   ``z_grow`` (hysteresis), lighter or darker than the ground; regions smaller
+   than ``min_area_fraction`` of the frame (pebbles, specks) are dropped.
+5. **Choice of rock.** A region scores its area, times its edge step (mean
+   ``z`` just inside its edge less just outside; a rock's edge is a step as
+   high as its contrast, a blob of texture fades out), times its compactness
+   ``4 pi area / perimeter**2`` (the ground between several rocks has a long
+   ragged edge), times ``(1 - s)**2`` where ``s`` is the share of its edge
+   that runs along the frame's (a rock lies inside the frame). The **main
+   rock** is the region of highest score over both polarities; the photo's
+   polarity is that of its main rock, whether the ground is lighter or darker.
+   A region whose contrast has two clear levels (Otsu's separation above 0.8:
+   a rock and a faint halo, or rocks joined through the ground between them)
+   is cut at Otsu's threshold, and its largest part kept. With ``all_rocks``,
+   every region of the main rock's polarity that scores at least a tenth of
+   the main rock and covers at least ``min_relative_area`` of its area is cut
+   so, and every part whose area is at least ``min_relative_area`` of the
+   largest is a rock, by decreasing area.
+6. **Outline.** In a window around each rock, at working size, after a
+   ``smooth_sigma`` Gaussian, the rock's level is the median inside the
+   detected region (less a margin) and the ground's the median of a ring
+   around it, away from other outliers. In gray photos the level is read from
+   the flattened brightness; in colour along Fisher's discriminant of the
+   flattened brightness and the smoothed hue (red and blue less luminance),
+   so that a rock's hue counts as well as its brightness and ground texture,
+   which mostly varies the ground's brightness, counts less; brightness keeps
+   at least half of the step, so that the outline stays at its sharp edge
+   rather than the smoothed hue's. Half-way between
+   rock and ground is where a blurred step edge lies, whatever the blur.
+   Pixels clipped by the sensor on a light rock count as rock. The connected
+   part beyond half-way that overlaps the detection is the rock; its holes
+   (texture, glints, engravings) are filled. If it reaches the window's edge,
+   the window is widened around it and the step repeated (at most three
+   times). If it still reaches it, or its area is under a quarter or over
+   four times the detection's, the threshold has failed and the detection
+   is kept. Besides the mask, a coverage map rising from 0 to 1
+   across the edge lets :func:`rockscan.outline.trace_outline` place the
+   outline between pixels.
+
+Known limits: a shadow darker than half-way between ground and rock joins a
+dark rock; a pebble or a patch of ground as light (or dark) as the rock and
+touching it joins it; a rock whose contrast is within about three standard
+deviations of the ground's texture may be found only in part; where the
+sensor clips a light rock its outline lies up to a blur's width outside; a
+rock cut by the frame's border is outlined along the border.
 """
 
 from __future__ import annotations
 
 import math
+from collections.abc import Iterator
 from dataclasses import dataclass
 
 import numpy as np
@@ -41,7 +91,7 @@ from numpy.typing import NDArray
 from rockscan._choices import POLARITIES
 from rockscan.errors import NoRockFoundError, ParameterError
 
-__all__ = ["SegmentConfig", "Segmentation", "segment", "to_gray"]
+__all__ = ["RockMask", "SegmentConfig", "Segmentation", "segment", "to_gray"]
 
 
 @dataclass(frozen=True)
@@ -51,16 +101,38 @@ class SegmentConfig:
     Parameters
     ----------
     work_size : int
-        Longer side of the working image, in pixels.
+        Longer side of the working image, in pixels (outline resolution).
+    outline_radius : float
+        Radius, in working pixels, that is enough to outline a rock: a larger
+        rock is outlined on a proportionally smaller working image (never
+        smaller than the detection image).
+    detect_size : int
+        Longer side of the detection image, in pixels (at most ``work_size``).
     median : int
-        Median filter aperture at working size (odd; 1 disables).
+        Median filter aperture of the detection image (1, 3 or 5; 1
+        disables); the working image gets 3 unless it is 1.
+    detect_sigma : float
+        Gaussian smoothing of the detection image, in pixels of an image
+        ``detect_size`` long (less for a smaller photo): texture averages
+        out, a rock stays.
     smooth_sigma : float
-        Gaussian smoothing at working size, pixels.
+        Gaussian smoothing of the working image before the outline's
+        threshold, in its pixels.
+    lighting_degree : int
+        Degree of the polynomial lighting surface (0 to 4; 0 is flat).
     lighting_sigma : float
-        Width of the lighting estimate, as a fraction of the working image's
-        longer side.
+        Width of the local lighting correction, as a fraction of the longer
+        side (0 disables it).
     iterations : int
-        Rounds of lighting estimation and thresholding.
+        Rounds of lighting fit and detection.
+    z_detect : float
+        Detection threshold, in robust standard deviations of the ground.
+    z_grow : float
+        Regions grow from pixels beyond ``z_detect`` through pixels beyond
+        this (hysteresis), in robust standard deviations.
+    min_contrast : float
+        Smallest difference a rock's seeds must have from the ground:
+        relative brightness (0.05 is 5% lighter or darker), or chromaticity.
     min_area_fraction : float
         Smallest region kept, as a fraction of the frame.
     min_relative_area : float
@@ -70,25 +142,78 @@ class SegmentConfig:
     """
 
     work_size: int = 512
-    median: int = 5
-    smooth_sigma: float = 1.0
-    lighting_sigma: float = 0.12
-    iterations: int = 3
+    outline_radius: float = 80.0
+    detect_size: int = 256
+    median: int = 3
+    detect_sigma: float = 2.0
+    smooth_sigma: float = 0.7
+    lighting_degree: int = 2
+    lighting_sigma: float = 0.2
+    iterations: int = 1
+    z_detect: float = 3.0
+    z_grow: float = 2.0
+    min_contrast: float = 0.05
     min_area_fraction: float = 0.002
     min_relative_area: float = 0.15
     polarity: str = "auto"
 
     def __post_init__(self) -> None:
-        if int(self.work_size) < 32:
-            raise ParameterError("work_size must be at least 32 pixels")
-        if self.median < 1 or self.median % 2 == 0:
-            raise ParameterError("median must be an odd aperture >= 1")
-        if self.polarity not in POLARITIES:
-            raise ParameterError("polarity must be 'auto', 'dark' or 'light'")
-        if not 0 < self.lighting_sigma <= 2:
-            raise ParameterError("lighting_sigma must be in (0, 2]")
+        for name in ("work_size", "detect_size", "median", "lighting_degree", "iterations"):
+            value = getattr(self, name)
+            if isinstance(value, bool) or not isinstance(value, (int, np.integer)):
+                raise ParameterError(f"{name} must be an integer, got {value!r}")
+        if self.work_size < 32 or self.detect_size < 32:
+            raise ParameterError("work_size and detect_size must be at least 32 pixels")
+        if self.detect_size > self.work_size:
+            raise ParameterError("detect_size must not exceed work_size")
+        if self.median not in (1, 3, 5):
+            raise ParameterError("median must be 1 (off), 3 or 5")
+        if not 0 <= self.lighting_degree <= 4:
+            raise ParameterError("lighting_degree must be between 0 and 4")
         if self.iterations < 1:
             raise ParameterError("iterations must be at least 1")
+        for name in (
+            "detect_sigma",
+            "smooth_sigma",
+            "z_detect",
+            "z_grow",
+            "min_area_fraction",
+            "min_relative_area",
+        ):
+            value = getattr(self, name)
+            if not (isinstance(value, (int, float)) and math.isfinite(value) and value >= 0):
+                raise ParameterError(f"{name} must be a non-negative number, got {value!r}")
+        if not 0 < self.z_grow <= self.z_detect:
+            raise ParameterError("z_grow must be positive and at most z_detect")
+        if self.min_area_fraction >= 0.5 or self.min_relative_area > 1:
+            raise ParameterError("min_area_fraction must be below 0.5 and min_relative_area at most 1")
+        if self.polarity not in POLARITIES:
+            raise ParameterError(f"polarity must be one of {', '.join(POLARITIES)}; got {self.polarity!r}")
+
+
+@dataclass(frozen=True, eq=False)
+class RockMask:
+    """One rock, in a window of the working image.
+
+    Attributes
+    ----------
+    mask : (h, w) ndarray of bool
+        The rock, holes filled.
+    coverage : (h, w) ndarray of float32
+        0 on the ground, 1 on the rock, in between across the edge; its 0.5
+        level is the outline, between pixels.
+    origin_rowcol : (int, int)
+        The window's top-left pixel in the working image.
+    """
+
+    mask: NDArray[np.bool_]
+    coverage: NDArray[np.float32]
+    origin_rowcol: tuple[int, int]
+
+    @property
+    def area(self) -> int:
+        """Area in working pixels."""
+        return int(self.mask.sum())
 
 
 @dataclass(frozen=True, eq=False)
@@ -99,28 +224,56 @@ class Segmentation:
     ----------
     labels : (rows, cols) ndarray of int32
         0 for ground, ``i`` for the i-th rock (1 = the main rock).
-    scale : float
-        Photo pixels per working pixel (the working image was reduced by it).
+    rocks : tuple of RockMask
+        The rocks in label order.
+    scale_rowcol : (float, float)
+        Photo pixels per working pixel along rows and columns.
     polarity : {"dark", "light"}
         Whether the rocks are darker or lighter than the ground.
-    n_rocks : int
+    channel : {"luminance", "chromaticity", "alpha"}
+        The channel the rocks were found in.
     """
 
     labels: NDArray[np.int32]
-    scale: float
+    rocks: tuple[RockMask, ...]
+    scale_rowcol: tuple[float, float]
     polarity: str
-    n_rocks: int
+    channel: str
+
+    @property
+    def n_rocks(self) -> int:
+        """Number of rocks."""
+        return len(self.rocks)
+
+    @property
+    def scale(self) -> float:
+        """Photo pixels per working pixel (the mean of rows and columns)."""
+        return 0.5 * (self.scale_rowcol[0] + self.scale_rowcol[1])
 
     def mask(self, index: int = 1) -> NDArray[np.bool_]:
-        """Mask of rock ``index`` (1-based) at working resolution."""
+        """Mask of rock ``index`` (1-based) over the whole working image."""
+        if not 1 <= index <= self.n_rocks:
+            raise ParameterError(f"rock index must be between 1 and {self.n_rocks}, got {index}")
         return self.labels == index
 
 
 def to_gray(pixels: NDArray[np.generic]) -> NDArray[np.float32]:
-    """Luminance in [0, 1] of a gray, RGB or RGBA photo of any integer or float type."""
+    """Luminance in [0, 1] of a gray, RGB or RGBA photo of any integer or float type.
+
+    Parameters
+    ----------
+    pixels : (rows, cols) or (rows, cols, 3|4) ndarray
+        Integer photos are scaled by their type's maximum; float photos are
+        taken to be in [0, 1] and clipped.
+
+    Returns
+    -------
+    gray : (rows, cols) ndarray of float32
+        ``0.299 R + 0.587 G + 0.114 B`` (ITU-R BT.601).
+    """
     arr = np.asarray(pixels)
     if arr.ndim == 3 and arr.shape[2] in (3, 4):
-        arr = arr[..., :3].astype(np.float32) @ np.array([0.299, 0.587, 0.114], np.float32)
+        arr = arr[..., :3].astype(np.float32) @ _LUMA
     elif arr.ndim != 2:
         raise ParameterError(f"a photo must be (rows, cols) or (rows, cols, 3|4), got shape {arr.shape}")
     return _unit(arr, np.asarray(pixels).dtype)
@@ -133,11 +286,11 @@ def segment(
 
     Parameters
     ----------
-    pixels : (rows, cols) or (rows, cols, 3|4) ndarray
+    pixels : (rows, cols) or (rows, cols, 1|3|4) ndarray
         The photo, gray or RGB(A), any integer type or float in [0, 1].
     config : SegmentConfig, optional
     all_rocks : bool
-        Label every rock, not only the main one.
+        Find every rock, not only the main one.
 
     Returns
     -------
@@ -145,263 +298,526 @@ def segment(
 
     Raises
     ------
+    ParameterError
+        If ``pixels`` is not a photo (wrong shape, too small, not numbers).
     NoRockFoundError
         If the photo is of one colour or no region stands out from the ground.
+
+    Notes
+    -----
+    The steps and the rule that picks the main rock are in the module's
+    docstring.
     """
     config = config or SegmentConfig()
-    arr = np.asarray(pixels)
-    if arr.ndim not in (2, 3) or arr.size == 0 or min(arr.shape[:2]) < 8:
-        raise ParameterError(f"a photo must be at least 8x8 pixels, got shape {arr.shape}")
-    if arr.ndim == 3 and arr.shape[2] not in (1, 3, 4):
-        raise ParameterError(f"a photo must have 1, 3 or 4 channels, got {arr.shape[2]}")
-    if arr.ndim == 3 and arr.shape[2] == 1:
-        arr = arr[..., 0]
-    if arr.dtype.kind == "f" and not np.all(np.isfinite(arr)):
-        raise ParameterError("photo pixels must be finite")
-    if arr.dtype.kind not in "uif":
-        raise ParameterError(f"photo pixels must be numbers, got {arr.dtype}")
+    arr = _check_pixels(pixels)
     rows, cols = arr.shape[:2]
-    scale = max(1.0, max(rows, cols) / config.work_size)
-    size = (max(8, round(cols / scale)), max(8, round(rows / scale)))
-    scale = cols / size[0]
+    color = arr[..., :3] if arr.ndim == 3 else arr
+    detect_scale = max(1.0, max(rows, cols) / config.detect_size)
+    largest_scale = max(1.0, max(rows, cols) / config.work_size)
 
-    alpha_mask = _alpha_mask(arr, size)
-    if alpha_mask is not None:
-        return _finish([alpha_mask], scale, "light", config, all_rocks)
+    if arr.ndim == 3 and arr.shape[2] == 4:
+        alpha, covered = _at_scale(_pyramid(arr[..., 3], config.work_size), largest_scale)
+        alpha = _unit(alpha, arr.dtype)
+        if 0.05 < float((alpha < 0.5).mean()) < 0.98:
+            scale_rowcol = (covered[0] / alpha.shape[0], covered[1] / alpha.shape[1])
+            return _from_alpha(alpha, scale_rowcol, config, all_rocks)
 
-    best: tuple[float, list[NDArray[np.bool_]], str] | None = None
-    for channel in _channels(arr, size):
-        found = _detect(channel, config, all_rocks)
-        if found is not None and (best is None or found[0] > best[0]):
-            best = found
+    levels = _pyramid(color, config.detect_size)
+    small, detect_covered = _at_scale(levels, detect_scale)
+    small = _unit(small, arr.dtype)
+    best: _Detection | None = None
+    for channel in _channels(small):
+        best = _detect(channel.values(small), channel, config, all_rocks)
+        if best is not None:
+            break
     if best is None:
         raise NoRockFoundError("no rock found: nothing stands out from the ground")
-    _, masks, polarity = best
-    return _finish(masks, scale, polarity, config, all_rocks)
+
+    # Outline on an image where the smallest rock found spans about
+    # outline_radius pixels: finer costs time and adds nothing to its shape.
+    smallest = min(int(r.sum()) for r in best.regions)
+    radius_photo = math.sqrt(smallest / math.pi) * detect_scale
+    work_scale = min(max(largest_scale, radius_photo / config.outline_radius), detect_scale)
+    work, covered = _at_scale(levels, work_scale)
+    scale_rowcol = (covered[0] / work.shape[0], covered[1] / work.shape[1])
+    work_size = (work.shape[1], work.shape[0])
+
+    # Working pixels per detection pixel, each image over the photo pixels it covers.
+    up = (
+        detect_covered[0] / small.shape[0] / scale_rowcol[0],
+        detect_covered[1] / small.shape[1] / scale_rowcol[1],
+    )
+    rocks = []
+    for region in best.regions:
+        rock = _outline_rock(work, arr.dtype, region, up, best, config)
+        if rock is not None:
+            rocks.append(rock)
+    if not rocks:
+        raise NoRockFoundError("no rock found: nothing stands out from the ground")
+    polarity = best.polarity
+    if best.channel.name != "luminance":
+        polarity = _luminance_polarity(work, arr.dtype, rocks[0])
+    rocks.sort(key=lambda r: -r.area)
+    labels = np.zeros((work_size[1], work_size[0]), np.int32)
+    for index, rock in enumerate(rocks, start=1):
+        r0, c0 = rock.origin_rowcol
+        h, w = rock.mask.shape
+        view = labels[r0 : r0 + h, c0 : c0 + w]
+        view[rock.mask & (view == 0)] = index
+    return Segmentation(
+        labels=labels,
+        rocks=tuple(rocks),
+        scale_rowcol=scale_rowcol,
+        polarity=polarity,
+        channel=best.channel.name,
+    )
 
 
-def _reduce(arr: NDArray[np.generic], size: tuple[int, int]) -> NDArray[np.generic]:
-    """Area-average an image to ``size`` = (cols, rows) in its own dtype."""
+# ---------------------------------------------------------------- input and channels
+
+
+_LUMA = np.array([0.299, 0.587, 0.114], np.float32)
+
+
+def _check_pixels(pixels: NDArray[np.generic]) -> NDArray[np.generic]:
+    arr = np.asarray(pixels)
+    if arr.ndim == 3 and arr.shape[2] == 1:
+        arr = arr[..., 0]
+    if arr.ndim not in (2, 3) or arr.size == 0:
+        raise ParameterError(
+            f"a photo must be (rows, cols) or (rows, cols, 3|4) pixels, got shape {np.shape(pixels)}"
+        )
+    if arr.ndim == 3 and arr.shape[2] not in (3, 4):
+        raise ParameterError(f"a photo must have 1, 3 or 4 channels, got {arr.shape[2]}")
+    if min(arr.shape[:2]) < 8:
+        raise ParameterError(f"a photo must be at least 8x8 pixels, got {arr.shape[0]}x{arr.shape[1]}")
+    if arr.dtype.kind not in "uif":
+        raise ParameterError(f"photo pixels must be numbers, got dtype {arr.dtype}")
+    if arr.dtype.kind == "f" and not np.all(np.isfinite(arr)):
+        raise ParameterError("photo pixels must be finite (no NaN or infinity)")
+    return arr
+
+
+def _pyramid(arr: NDArray[np.generic], smallest: int) -> list[NDArray[np.generic]]:
+    """The image and its exact halvings (area averages), down to a longer side of ``smallest``.
+
+    Level k's pixel covers exactly ``2**k`` photo pixels each way: an odd side
+    loses its last pixel before halving, which keeps OpenCV on its fast path
+    and the geometry exact.
+    """
     import cv2
 
-    if (arr.shape[1], arr.shape[0]) == size:
-        return arr
     if arr.dtype not in (np.uint8, np.uint16, np.float32, np.float64):
         arr = arr.astype(np.float32)
-    return cv2.resize(arr, size, interpolation=cv2.INTER_AREA)
+    levels = [np.ascontiguousarray(arr)]
+    while max(levels[-1].shape[:2]) >= 2 * smallest and min(levels[-1].shape[:2]) >= 16:
+        top = levels[-1]
+        half = (top.shape[1] // 2, top.shape[0] // 2)
+        even = np.ascontiguousarray(top[: 2 * half[1], : 2 * half[0]])
+        levels.append(
+            cv2.resize(even, half, interpolation=cv2.INTER_AREA).reshape(half[1], half[0], *top.shape[2:])
+        )
+    return levels
+
+
+def _at_scale(
+    levels: list[NDArray[np.generic]], scale: float
+) -> tuple[NDArray[np.generic], tuple[float, float]]:
+    """The photo reduced about ``scale`` times, and the photo pixels it covers (rows, cols).
+
+    The deepest pyramid level not coarser than ``scale`` is resized once more:
+    by area averaging, or bilinearly when the step is small enough that no
+    detail is lost between samples.
+    """
+    import cv2
+
+    k = min(len(levels) - 1, max(0, math.floor(math.log2(max(scale, 1.0)) + 1e-9)))
+    level = levels[k]
+    covered = (level.shape[0] * 2.0**k, level.shape[1] * 2.0**k)
+    size = (max(1, round(covered[1] / scale)), max(1, round(covered[0] / scale)))
+    if (level.shape[1], level.shape[0]) == size:
+        return level, covered
+    step = max(level.shape[1] / size[0], level.shape[0] / size[1])
+    method = cv2.INTER_LINEAR if step < 1.5 else cv2.INTER_AREA
+    out = cv2.resize(level, size, interpolation=method)
+    return out.reshape(size[1], size[0], *level.shape[2:]), covered
 
 
 def _unit(arr: NDArray[np.generic], dtype: np.dtype) -> NDArray[np.float32]:
-    if dtype.kind == "u" or dtype.kind == "i":
-        top = float(np.iinfo(dtype).max)
-        return (arr.astype(np.float32) / top).astype(np.float32)
+    """Values in [0, 1] as float32: integers by their type's maximum, floats clipped."""
+    if dtype.kind in "ui":
+        return arr.astype(np.float32) * np.float32(1.0 / np.iinfo(dtype).max)
     return np.clip(arr.astype(np.float32), 0.0, 1.0)
 
 
-def _alpha_mask(arr: NDArray[np.generic], size: tuple[int, int]) -> NDArray[np.bool_] | None:
-    """The rock cut out by an alpha channel, if the photo has a meaningful one."""
+@dataclass(frozen=True, eq=False)
+class _Channel:
+    """A brightness channel: how to compute it from colour or gray pixels in [0, 1].
 
-    if arr.ndim != 3 or arr.shape[2] != 4:
-        return None
-    small = _unit(_reduce(np.ascontiguousarray(arr[..., 3]), size), arr.dtype)
-    transparent = float((small < 0.5).mean())
-    if not 0.05 < transparent < 0.98:
-        return None
-    return small >= 0.5
+    ``direction`` and ``center`` define the chromaticity channel (a projection
+    of ``rgb / (r + g + b)``); luminance has neither. ``multiplicative`` says
+    whether lighting multiplies the channel (luminance) or cancels in it.
+    """
+
+    name: str
+    multiplicative: bool
+    direction: NDArray[np.float32] | None = None
+    center: NDArray[np.float32] | None = None
+
+    def values(self, image: NDArray[np.float32]) -> NDArray[np.float32]:
+        if image.ndim == 2:
+            return image
+        if self.direction is None:
+            return image @ _LUMA
+        total = image.sum(axis=2)
+        # Chromaticity is noise where there is no light; the darkest pixels get the mean.
+        projected = (image @ self.direction - self.center @ self.direction * total) / np.maximum(total, 0.06)
+        return np.where(total > 0.06, projected, 0.0).astype(np.float32)
 
 
-def _channels(arr: NDArray[np.generic], size: tuple[int, int]) -> list[NDArray[np.float32]]:
-    """Candidate brightness channels at working size."""
+def _channels(small: NDArray[np.float32]) -> Iterator[_Channel]:
+    """Candidate channels, learnt from the detection image (module docstring, step 2).
 
-    dtype = arr.dtype
-    # Reduce first, in the photo's own type: a float copy of an 8000 x 8000
-    # colour photo would cost 768 MB.
-    if arr.ndim == 2:
-        return [_unit(_reduce(arr, size), dtype)]
-    color = _unit(_reduce(np.ascontiguousarray(arr[..., :3]), size), dtype)
-    luminance = color @ np.array([0.299, 0.587, 0.114], np.float32)
-    flat = color.reshape(-1, 3)
-    centered = flat - flat.mean(axis=0)
-    _, vectors = np.linalg.eigh(centered.T @ centered)
-    principal = (centered @ vectors[:, -1]).reshape(luminance.shape).astype(np.float32)
-    return [luminance, principal]
+    A generator: the chromaticity is only worked out if luminance finds no rock.
+    """
+    yield _Channel("luminance", True)
+    if small.ndim == 2:
+        return
+    total = small.sum(axis=2)
+    lit = total > 0.06
+    if lit.sum() < 16:
+        return
+    chroma = small[lit] / total[lit, None]
+    center = chroma.mean(axis=0)
+    values, vectors = np.linalg.eigh(np.cov(chroma.T))
+    # A chromaticity that barely varies (a gray or evenly tinted photo) adds nothing.
+    if values[-1] > 1e-5:
+        direction = vectors[:, -1].astype(np.float32)
+        yield _Channel("chromaticity", False, direction, center.astype(np.float32))
+
+
+# ---------------------------------------------------------------- detection
+
+
+@dataclass(frozen=True, eq=False)
+class _Detection:
+    """What detection found in one channel, and what the outline step needs from it."""
+
+    score: float
+    regions: list[NDArray[np.bool_]]
+    polarity: str
+    lighting: NDArray[np.float32]
+    channel: _Channel
+    outliers: NDArray[np.bool_]
+
+
+def _poly_terms(rows_norm: NDArray[np.float64], cols_norm: NDArray[np.float64], degree: int) -> list:
+    return [cols_norm**i * rows_norm**j for i in range(degree + 1) for j in range(degree + 1 - i)]
+
+
+def _norm_coords(n: int) -> NDArray[np.float64]:
+    """Pixel centres of an axis of n pixels mapped to [-1, 1] (frame edges at -1 and 1)."""
+    return (np.arange(n) + 0.5) / n * 2.0 - 1.0
+
+
+def _fit_lighting(image: NDArray[np.float32], ground: NDArray[np.bool_], degree: int) -> NDArray[np.float64]:
+    """Polynomial surface through the ground pixels; its coefficients.
+
+    Least squares, twice more without the pixels beyond 2.5 robust standard
+    deviations of the fit: a rock that reaches into the ground pixels, a
+    pebble or a shadow then do not bend the surface.
+    """
+    rows, cols = image.shape
+    # Every fourth pixel each way is plenty for a smooth surface and sixteen times cheaper.
+    rr, cc = np.nonzero(ground[::4, ::4])
+    rr, cc = rr * 4, cc * 4
+    if rr.size < 3 * (degree + 1) ** 2:
+        rr, cc = np.nonzero(ground)
+    if rr.size == 0:
+        return np.array([float(image.mean())])
+    terms = np.stack(_poly_terms(_norm_coords(rows)[rr], _norm_coords(cols)[cc], degree), axis=1)
+    values = image[rr, cc].astype(np.float64)
+    keep = np.ones(values.size, bool)
+    for _ in range(3):
+        t, v = terms[keep], values[keep]
+        gram = t.T @ t
+        gram[np.diag_indices_from(gram)] += 1e-9 * max(float(np.trace(gram)), 1.0)
+        coef = np.linalg.solve(gram, t.T @ v)
+        residual = values - terms @ coef
+        # The mean absolute deviation (times 1.25, a normal's ratio) is robust
+        # enough here, and needs no sort.
+        kept = residual[keep]
+        spread = 1.2533 * float(np.abs(kept - kept.mean()).mean())
+        inliers = np.abs(residual) <= 2.5 * max(spread, 1e-6)
+        if inliers.sum() < terms.shape[1] * 3:
+            break
+        keep = inliers
+    return coef
+
+
+def _eval_lighting(
+    coef: NDArray[np.float64], rows_norm: NDArray[np.float64], cols_norm: NDArray[np.float64]
+) -> NDArray[np.float32]:
+    degree = round((math.sqrt(8 * coef.size + 1) - 3) / 2)
+    # sum_ij c_ij x^i y^j = Y C X^T with Vandermonde matrices: one matrix product.
+    grid = np.zeros((degree + 1, degree + 1))
+    pairs = [(i, j) for i in range(degree + 1) for j in range(degree + 1 - i)]
+    for c, (i, j) in zip(coef, pairs, strict=True):
+        grid[j, i] = c
+    rows_v = rows_norm[:, None] ** np.arange(degree + 1)
+    cols_v = cols_norm[:, None] ** np.arange(degree + 1)
+    return (rows_v @ grid @ cols_v.T).astype(np.float32)
+
+
+def _local_residual(
+    residual: NDArray[np.float32], ground: NDArray[np.bool_], sigma: float
+) -> NDArray[np.float32]:
+    """What the polynomial misses of the ground's lighting (a dark corner, a
+    bright patch): the ground's residual spread by a normalised Gaussian."""
+    import cv2
+
+    rows, cols = residual.shape
+    # So wide a blur loses nothing on a copy a few pixels per sigma.
+    factor = max(1, int(sigma // 3))
+    size = (max(4, cols // factor), max(4, rows // factor))
+    weight = cv2.resize(ground.astype(np.float32), size, interpolation=cv2.INTER_AREA)
+    spread = cv2.resize(
+        np.where(ground, residual, 0.0).astype(np.float32), size, interpolation=cv2.INTER_AREA
+    )
+    small_sigma = sigma * size[0] / cols
+    weight = cv2.GaussianBlur(weight, (0, 0), small_sigma, borderType=cv2.BORDER_REFLECT)
+    spread = cv2.GaussianBlur(spread, (0, 0), small_sigma, borderType=cv2.BORDER_REFLECT)
+    local = np.where(weight > 1e-3, spread / np.maximum(weight, 1e-6), 0.0).astype(np.float32)
+    return cv2.resize(local, (cols, rows), interpolation=cv2.INTER_LINEAR)
+
+
+def _window_of(
+    small: NDArray[np.float32], up: tuple[float, float], box: tuple[int, int, int, int]
+) -> NDArray[np.float32]:
+    """A smooth detection-size map, bilinearly enlarged to working size, inside a window.
+
+    ``up`` is working pixels per detection pixel (rows, cols); ``box`` the
+    window (r0, r1, c0, c1) in working pixels.
+    """
+    import cv2
+
+    r0, r1, c0, c1 = box
+    # Working pixel centre (r, c) sits at detection pixel ((r + 0.5) / up - 0.5).
+    inverse = np.array(
+        [[1.0 / up[1], 0.0, (c0 + 0.5) / up[1] - 0.5], [0.0, 1.0 / up[0], (r0 + 0.5) / up[0] - 0.5]]
+    )
+    flags = cv2.INTER_LINEAR | cv2.WARP_INVERSE_MAP
+    return cv2.warpAffine(small, inverse, (c1 - c0, r1 - r0), flags=flags, borderMode=cv2.BORDER_REPLICATE)
+
+
+def _flatten(
+    image: NDArray[np.float32], lighting: NDArray[np.float32], multiplicative: bool
+) -> NDArray[np.float32]:
+    if multiplicative:
+        # The offset keeps a nearly black ground from amplifying its noise without bound.
+        return (image - lighting) / (np.maximum(lighting, 0.0) + np.float32(0.05))
+    return image - lighting
+
+
+def _smooth(image: NDArray[np.float32], median: int, sigma: float) -> NDArray[np.float32]:
+    import cv2
+
+    if median > 1:
+        image = cv2.medianBlur(np.ascontiguousarray(image, dtype=np.float32), median)
+    if sigma > 0:
+        image = cv2.GaussianBlur(image, (0, 0), sigma)
+    return image
 
 
 def _detect(
-    channel: NDArray[np.float32], config: SegmentConfig, all_rocks: bool
-) -> tuple[float, list[NDArray[np.bool_]], str] | None:
-    """Detect rocks in one channel; returns (score, masks, polarity) or None."""
+    channel_values: NDArray[np.float32], channel: _Channel, config: SegmentConfig, all_rocks: bool
+) -> _Detection | None:
+    """Find rocks in one channel at detection size (module docstring, steps 3-5)."""
     import cv2
 
-    lo, hi = float(channel.min()), float(channel.max())
-    if hi - lo < 1e-3:
+    if float(channel_values.max()) - float(channel_values.min()) < 1e-3:
         return None
-    image = ((channel - lo) / (hi - lo)).astype(np.float32)
-    if config.median > 1:
-        image = cv2.medianBlur((image * 255).astype(np.uint8), config.median).astype(np.float32) / 255.0
-    if config.smooth_sigma > 0:
-        image = cv2.GaussianBlur(image, (0, 0), config.smooth_sigma)
+    # detect_sigma is in pixels of a detect_size image: a smaller photo is smoothed less.
+    sigma = config.detect_sigma * min(1.0, max(channel_values.shape) / config.detect_size)
+    image = _smooth(channel_values, config.median, sigma)
     rows, cols = image.shape
+    rows_norm, cols_norm = _norm_coords(rows), _norm_coords(cols)
     min_area = max(12.0, config.min_area_fraction * rows * cols)
-    sigma = config.lighting_sigma * max(rows, cols)
-    # The ground is learnt from the frame's border, where a rock that lies
-    # inside the frame is not, whatever share of the frame the rock covers.
-    width = max(2, int(0.04 * min(rows, cols)))
-    border = np.zeros((rows, cols), dtype=bool)
-    border[:width], border[-width:], border[:, :width], border[:, -width:] = True, True, True, True
-    ground = np.ones((rows, cols), dtype=bool)
-    result = None
-    for _ in range(config.iterations + 1):
-        lighting = _normalized_blur(image, ground, sigma)
-        # Light multiplies reflectance: divide it out. The offset keeps a
-        # nearly black ground from blowing up.
-        flat = image / (lighting + 0.05) - 1.0
-        reference = border & ground if (border & ground).sum() > 0.25 * border.sum() else border
-        z = _robust_z(flat, reference)
-        result = _best_regions(z, config, min_area, all_rocks)
-        if result is None:
+    # The ground is first learnt from the frame's border, where a rock that
+    # lies inside the frame is not, whatever share of the frame it covers.
+    width = max(2, round(0.04 * min(rows, cols)))
+    ground = np.zeros((rows, cols), dtype=bool)
+    ground[:width], ground[-width:], ground[:, :width], ground[:, -width:] = True, True, True, True
+    kernel = np.ones((5, 5), np.uint8)
+    fit_ground = stat_ground = ground
+    for round_ in range(config.iterations + 1):
+        coef = _fit_lighting(image, fit_ground, config.lighting_degree)
+        lighting = _eval_lighting(coef, rows_norm, cols_norm)
+        if round_ > 0 and config.lighting_sigma > 0:
+            lighting = lighting + _local_residual(
+                image - lighting, fit_ground, config.lighting_sigma * max(rows, cols)
+            )
+        flat = _flatten(image, lighting, channel.multiplicative)
+        # A smooth ground has a tiny spread; the floor keeps a rock at least
+        # min_contrast from it, so that noise and JPEG blocks are no rock.
+        z = _robust_z(flat, stat_ground, config.min_contrast / config.z_detect)
+        last = round_ == config.iterations
+        found = _best_regions(z, config, min_area, all_rocks, split=last)
+        if found is None:
             return None
-        _, masks, polarity = result
-        # Lighting is learnt from the ground only: not the rocks, nor anything
-        # else as far out on the rocks' side (pebbles). The other side stays:
-        # dark gaps and shadows are the ground's lighting.
-        far = z > _Z_DETECT if polarity == "light" else z < -_Z_DETECT
-        outliers = np.logical_or.reduce(masks) | far
-        ground = ~cv2.dilate(outliers.astype(np.uint8), np.ones((7, 7), np.uint8)).astype(bool)
-        if ground.mean() < 0.05:
+        outliers = np.abs(z) > config.z_grow
+        if last:
             break
-    assert result is not None
-    score, masks, polarity = result
-    refined = [_refine(flat, mask, polarity) for mask in masks]
-    return score, refined, polarity
+        # Next round the ground is everything but the rocks. The lighting fit
+        # also leaves out anything else far from the ground on either side
+        # (pebbles, shadows, glints); the ground's spread does not, or it
+        # would shrink round after round.
+        rocks = cv2.dilate(np.logical_or.reduce(found[1]).astype(np.uint8), kernel) > 0
+        far = cv2.dilate((np.abs(z) > config.z_grow).astype(np.uint8), kernel) > 0
+        if (~rocks).mean() < 0.1:
+            break
+        stat_ground = ~rocks
+        fit_ground = ~(rocks | far) if (~(rocks | far)).mean() >= 0.1 else stat_ground
+    score, regions, polarity = found
+    return _Detection(score, regions, polarity, lighting, channel, outliers)
 
 
-def _robust_z(flat: NDArray[np.float32], ground: NDArray[np.bool_]) -> NDArray[np.float32]:
-    """Deviation from the ground in robust standard deviations (median, MAD)."""
+def _luminance_polarity(work: NDArray[np.generic], dtype: np.dtype, rock: RockMask) -> str:
+    """Whether a rock found by its hue is lighter or darker than the ground around it."""
+    r0, c0 = rock.origin_rowcol
+    h, w = rock.mask.shape
+    lum = _Channel("luminance", True).values(_unit(work[r0 : r0 + h, c0 : c0 + w], dtype))
+    outside = lum[~rock.mask]
+    if outside.size == 0:
+        return "light"
+    return "light" if float(np.median(lum[rock.mask])) > float(np.median(outside)) else "dark"
+
+
+def _robust_z(flat: NDArray[np.float32], ground: NDArray[np.bool_], floor: float) -> NDArray[np.float32]:
+    """Deviation from the ground in robust standard deviations (median, MAD, at least ``floor``)."""
     values = flat[ground] if ground.sum() > 50 else flat.ravel()
+    # Every fourth value gives the same statistics at a quarter of the cost.
+    values = values[::4] if values.size > 4000 else values
     median = float(np.median(values))
     mad = float(np.median(np.abs(values - median))) * 1.4826
-    spread = max(mad, 0.01 * float(np.abs(values).mean() + 1e-3), 1e-4)
+    spread = max(mad, floor, 1e-6)
     return ((flat - median) / spread).astype(np.float32)
 
 
-def _best_regions(
-    z: NDArray[np.float32], config: SegmentConfig, min_area: float, all_rocks: bool
-) -> tuple[float, list[NDArray[np.bool_]], str] | None:
-    """The rock regions of the more convincing polarity.
+#: Contrast beyond which a pixel counts no more toward its region's edge step,
+#: in robust standard deviations: a few glints must not outweigh a rock.
+_Z_CAP = 30.0
 
-    A region is a connected set of pixels more than ``_Z_DETECT`` robust
-    standard deviations from the ground; its score is its area times its median
-    deviation, so a large, clearly contrasting rock beats texture and pebbles.
-    """
+
+def _best_regions(
+    z: NDArray[np.float32], config: SegmentConfig, min_area: float, all_rocks: bool, *, split: bool = True
+) -> tuple[float, list[NDArray[np.bool_]], str] | None:
+    """Score of the main rock, the rock regions and their polarity (module docstring, steps 4-5)."""
     import cv2
 
     rows, cols = z.shape
     best = None
+    band = np.ones((5, 5), np.uint8)
+    edge = np.zeros((rows, cols), bool)
+    edge[0], edge[-1], edge[:, 0], edge[:, -1] = True, True, True, True
     polarities = ("light", "dark") if config.polarity == "auto" else (config.polarity,)
     for polarity in polarities:
-        candidate = z > _Z_DETECT if polarity == "light" else z < -_Z_DETECT
-        count, labels, stats, _ = cv2.connectedComponentsWithStats(candidate.astype(np.uint8), connectivity=8)
+        signed = z if polarity == "light" else -z
+        # Hysteresis: regions grow from seeds beyond z_detect through pixels beyond z_grow.
+        candidate = (signed > config.z_grow).astype(np.uint8)
+        count, labels, stats, _ = cv2.connectedComponentsWithStats(candidate, connectivity=8)
         if count <= 1:
             continue
+        seeded = np.bincount(labels[signed > config.z_detect], minlength=count)[1:] > 0
         areas = stats[1:, cv2.CC_STAT_AREA].astype(np.float64)
-        keep = np.flatnonzero(areas >= min_area)
-        if keep.size == 0:
+        usable = seeded & (areas >= min_area)
+        if not usable.any():
             continue
-        flat_labels = labels.ravel()
-        abs_z = np.abs(z).ravel()
-        order = np.argsort(flat_labels, kind="stable")
-        bounds = np.searchsorted(flat_labels[order], np.arange(count + 1))
-        medians = np.array(
-            [
-                float(np.median(abs_z[order[bounds[i + 1] : bounds[i + 2]]])) if i in set(keep) else 0.0
-                for i in range(count - 1)
-            ]
-        )
-        scores = areas * medians
-        x0, y0 = stats[1:, cv2.CC_STAT_LEFT], stats[1:, cv2.CC_STAT_TOP]
-        x1 = x0 + stats[1:, cv2.CC_STAT_WIDTH]
-        y1 = y0 + stats[1:, cv2.CC_STAT_HEIGHT]
-        touches = (x0 == 0) | (y0 == 0) | (x1 == cols) | (y1 == rows)
-        usable = np.zeros(count - 1, bool)
-        usable[keep] = True
-        inside = usable & ~touches
-        pool = inside if inside.any() else usable
-        ranked = [int(i) for i in np.argsort(-np.where(pool, scores, -1.0)) if pool[i]]
+        # Edge step: mean contrast just inside a region less just outside it.
+        # A rock's edge is a step as high as its contrast; a blob of texture
+        # fades out and barely steps at its edge.
+        inner = (candidate - cv2.erode(candidate, band)).astype(bool)
+        outer_labels = cv2.dilate(labels.astype(np.float32), band).astype(np.int64)
+        outer = (labels == 0) & (outer_labels > 0)
+        clipped = np.minimum(signed, _Z_CAP)
+        inner_n = np.bincount(labels[inner], minlength=count)[1:]
+        inner_sum = np.bincount(labels[inner], weights=clipped[inner], minlength=count)[1:]
+        outer_n = np.bincount(outer_labels[outer], minlength=count)[1:]
+        outer_sum = np.bincount(outer_labels[outer], weights=clipped[outer], minlength=count)[1:]
+        step = inner_sum / np.maximum(inner_n, 1) - outer_sum / np.maximum(outer_n, 1)
+        # The share of a region's edge that is the frame's edge: a rock lies
+        # inside the frame, the ground (or a lighting residue) runs along it.
+        # The inner band is two pixels wide: half its count is the perimeter.
+        perimeter = np.maximum(inner_n / 2.0, 1.0)
+        on_edge = np.bincount(labels[edge], minlength=count)[1:]
+        share = np.clip(on_edge / perimeter, 0.0, 1.0)
+        # Rocks are solid; the ground between several rocks, or a blob of
+        # texture, has a long ragged edge for its area (1 for a disc).
+        compactness = np.minimum(4.0 * np.pi * areas / perimeter**2, 1.0)
+        scores = areas * np.maximum(step, 0.0) * compactness * (1.0 - share) ** 2
+        scores = np.where(usable, scores, -1.0)
+        main = int(np.argmax(scores))
+        total = float(scores[main])
+        if total <= 0 or (best is not None and total <= best[0]):
+            continue
         if all_rocks:
-            largest = areas[ranked].max()
-            ranked = [i for i in ranked if areas[i] >= config.min_relative_area * largest]
+            # Another rock stands out about as clearly as the main one; ground
+            # texture that passes the thresholds scores far less.
+            keep = (
+                usable
+                & (scores >= _RELATIVE_SCORE * total)
+                & (areas >= config.min_relative_area * areas[main])
+            )
+            regions = [
+                part
+                for i in np.flatnonzero(keep)
+                for part in (_split(labels == i + 1, signed, min_area) if split else [labels == i + 1])
+            ]
+            if not regions:
+                continue
+            largest = max(int(r.sum()) for r in regions)
+            regions = [r for r in regions if r.sum() >= config.min_relative_area * largest]
+            regions.sort(key=lambda r: -int(r.sum()))
         else:
-            ranked = ranked[:1]
-        total = float(scores[ranked[0]]) * (1.0 if inside.any() else 0.5)
-        if best is None or total > best[0]:
-            best = (total, [labels == i + 1 for i in ranked], polarity)
+            parts = _split(labels == main + 1, signed, min_area) if split else []
+            regions = [max(parts, key=lambda r: int(r.sum()))] if parts else [labels == main + 1]
+        best = (total, regions, polarity)
     return best
 
 
-def _refine(flat: NDArray[np.float32], detected: NDArray[np.bool_], polarity: str) -> NDArray[np.bool_]:
-    """Re-threshold a detected rock in a window around it.
+#: With several rocks, the smallest score of a rock as a fraction of the main rock's.
+_RELATIVE_SCORE = 0.1
 
-    The detection threshold sits far out in the ground's tail; the outline
-    belongs half-way between rock and ground, which Otsu's threshold finds
-    once the window holds about as much rock as ground.
+
+def _split(
+    region: NDArray[np.bool_], signed: NDArray[np.float32], min_area: float
+) -> list[NDArray[np.bool_]]:
+    """A region cut into the rocks it holds, if its contrast has two clear levels.
+
+    Growth at a low threshold joins a rock to a faint surround (a halo, a
+    lighter patch of ground) or several rocks to each other through the ground
+    between them. Then the region's contrast is bimodal, and Otsu's threshold
+    parts rock from surround. A single rock's contrast, however textured, is
+    one hump (Otsu's separation below ``_BIMODAL``) and is left whole. Parts
+    smaller than ``min_area`` are dropped.
     """
     import cv2
 
-    rows, cols = flat.shape
-    ys, xs = np.nonzero(detected)
-    h, w = ys.max() - ys.min() + 1, xs.max() - xs.min() + 1
-    r0, r1 = max(0, ys.min() - h // 2), min(rows, ys.max() + h // 2 + 1)
-    c0, c1 = max(0, xs.min() - w // 2), min(cols, xs.max() + w // 2 + 1)
-    window = flat[r0:r1, c0:c1]
-    threshold, _ = _otsu(window)
-    inside = window > threshold if polarity == "light" else window < threshold
-    count, labels = cv2.connectedComponents(inside.astype(np.uint8), connectivity=8)
-    seed = detected[r0:r1, c0:c1]
-    overlap = np.bincount(labels[seed], minlength=count)
-    overlap[0] = 0
-    if overlap.max() == 0:
-        return detected
-    region = labels == int(np.argmax(overlap))
-    # A region that leaks out of its window has merged with the ground; keep
-    # the detection instead.
-    edge = np.concatenate([region[0], region[-1], region[:, 0], region[:, -1]])
-    touches_frame = np.array([r0 == 0, r1 == rows, c0 == 0, c1 == cols])
-    if edge.mean() > 0.25 and not touches_frame.any():
-        return detected
-    out = np.zeros_like(detected)
-    out[r0:r1, c0:c1] = region | seed
-    return out
-
-
-#: Detection threshold, robust standard deviations from the ground.
-_Z_DETECT = 3.0
-
-
-def _normalized_blur(
-    image: NDArray[np.float32], weight: NDArray[np.bool_], sigma: float
-) -> NDArray[np.float32]:
-    """Gaussian blur of ``image`` counting only pixels where ``weight`` is set."""
-    import cv2
-
-    # A wide blur is cheap on a reduced copy; lighting has no fine detail.
-    factor = max(1, int(sigma // 4))
-    small_size = (max(4, image.shape[1] // factor), max(4, image.shape[0] // factor))
-    w = cv2.resize(weight.astype(np.float32), small_size, interpolation=cv2.INTER_AREA)
-    v = cv2.resize(image * weight, small_size, interpolation=cv2.INTER_AREA)
-    s = sigma / factor
-    num = cv2.GaussianBlur(v, (0, 0), s, borderType=cv2.BORDER_REFLECT)
-    den = cv2.GaussianBlur(w, (0, 0), s, borderType=cv2.BORDER_REFLECT)
-    fallback = float((image * weight).sum() / max(weight.sum(), 1))
-    est = np.where(den > 1e-3, num / np.maximum(den, 1e-6), fallback).astype(np.float32)
-    return cv2.resize(est, (image.shape[1], image.shape[0]), interpolation=cv2.INTER_LINEAR)
+    values = np.minimum(signed[region], _Z_CAP)
+    threshold, separation = _otsu(values)
+    if separation < _BIMODAL:
+        return [region]
+    count, labels, stats, _ = cv2.connectedComponentsWithStats(
+        (region & (signed > threshold)).astype(np.uint8), connectivity=8
+    )
+    parts = [labels == i for i in range(1, count) if stats[i, cv2.CC_STAT_AREA] >= min_area]
+    return parts or [region]
 
 
 def _otsu(values: NDArray[np.float32]) -> tuple[float, float]:
-    """Otsu's threshold and the separation (between-class over total variance)."""
-    v = values.ravel()
-    hist, edges = np.histogram(v, bins=256)
-    centers = (edges[:-1] + edges[1:]) / 2
+    """Otsu's threshold of some values, and its separation (between-class over total variance)."""
+    hist, edges = np.histogram(values, bins=64)
+    centers = 0.5 * (edges[:-1] + edges[1:])
     w0 = np.cumsum(hist).astype(np.float64)
     w1 = w0[-1] - w0
     s0 = np.cumsum(hist * centers)
@@ -409,37 +825,259 @@ def _otsu(values: NDArray[np.float32]) -> tuple[float, float]:
     m1 = (s0[-1] - s0) / np.maximum(w1, 1)
     between = w0 * w1 * (m0 - m1) ** 2 / w0[-1] ** 2
     i = int(np.argmax(between[:-1]))
-    total = float(v.var())
+    total = float(values.var())
     return float(edges[i + 1]), float(between[i] / total) if total > 0 else 0.0
 
 
-def _finish(
-    masks: list[NDArray[np.bool_]], scale: float, polarity: str, config: SegmentConfig, all_rocks: bool
-) -> Segmentation:
-    """Fill holes, drop specks, and label the rocks by decreasing area."""
-    import cv2
-    from scipy import ndimage
+#: Otsu's separation above which a region's contrast counts as two levels: a
+#: single normal hump gives 2/pi = 0.64, two clearly apart levels near 1.
+_BIMODAL = 0.8
 
-    rows, cols = masks[0].shape
+
+# ---------------------------------------------------------------- outline at working size
+
+
+#: Smoothing of the hue before it joins the brightness, in working pixels.
+_HUE_SIGMA = 3.0
+#: Red and blue less luminance (BT.601), the two hue coordinates.
+_HUE_MATRIX = np.array([[0.701, -0.587, -0.114], [-0.299, -0.587, 0.886]], np.float32)
+
+#: Pixel value (photo in [0, 1]) from which a pixel counts as clipped by the sensor.
+_CEILING = 0.98
+
+
+def _outline_rock(
+    work: NDArray[np.generic],
+    dtype: np.dtype,
+    region: NDArray[np.bool_],
+    up: tuple[float, float],
+    detection: _Detection,
+    config: SegmentConfig,
+) -> RockMask | None:
+    """Outline one detected rock at working size (module docstring, step 6)."""
+    rows, cols = work.shape[:2]
+    # Working pixel -> nearest detection pixel, along each axis.
+    to_row = np.minimum(((np.arange(rows) + 0.5) / up[0]).astype(np.int64), region.shape[0] - 1)
+    to_col = np.minimum(((np.arange(cols) + 0.5) / up[1]).astype(np.int64), region.shape[1] - 1)
+    ys, xs = np.nonzero(region)
+    r0, r1 = math.floor(ys.min() * up[0]), min(rows, math.ceil((ys.max() + 1) * up[0]))
+    c0, c1 = math.floor(xs.min() * up[1]), min(cols, math.ceil((xs.max() + 1) * up[1]))
+    detected = region[to_row[r0:r1, None], to_col[None, c0:c1]]
+    estimate, origin = detected, (r0, c0)
+    rock, reaches_edge = None, False
+    # A rock only partly detected reaches its window's edge: look again in a
+    # window around what was found. What still reaches it after three looks,
+    # or has grown past four times the detection, has flooded the ground.
+    for _ in range(3):
+        rock, reaches_edge = _threshold_rock(
+            work, dtype, estimate, origin, (to_row, to_col), up, detection, config
+        )
+        if rock is None or not reaches_edge:
+            break
+        estimate, origin = rock.mask, rock.origin_rowcol
+    if rock is None or reaches_edge or rock.area > 4.0 * float(detected.sum()):
+        return _fallback(detected, (r0, c0))
+    return rock
+
+
+def _threshold_rock(
+    work: NDArray[np.generic],
+    dtype: np.dtype,
+    estimate: NDArray[np.bool_],
+    origin: tuple[int, int],
+    to_detect: tuple[NDArray[np.int64], NDArray[np.int64]],
+    up: tuple[float, float],
+    detection: _Detection,
+    config: SegmentConfig,
+) -> tuple[RockMask | None, bool]:
+    """Threshold half-way between rock and ground in a window around an estimate of the rock.
+
+    Returns the rock and whether it reaches an edge of the window that is not
+    the frame's.
+    """
+    import cv2
+
+    rows, cols = work.shape[:2]
+    ys, xs = np.nonzero(estimate)
+    if ys.size == 0:
+        return None, False
+    radius = math.sqrt(ys.size / math.pi)
+    pad = round(max(6.0, 0.5 * radius))
+    r0 = max(0, origin[0] + int(ys.min()) - pad)
+    r1 = min(rows, origin[0] + int(ys.max()) + 1 + pad)
+    c0 = max(0, origin[1] + int(xs.min()) - pad)
+    c1 = min(cols, origin[1] + int(xs.max()) + 1 + pad)
+    detected = np.zeros((r1 - r0, c1 - c0), bool)
+    detected[ys + origin[0] - r0, xs + origin[1] - c0] = True
+    to_row, to_col = to_detect
+    others = detection.outliers[to_row[r0:r1, None], to_col[None, c0:c1]] & ~detected
+
+    window = _unit(np.ascontiguousarray(work[r0:r1, c0:c1]), dtype)
+    values = _smooth(detection.channel.values(window), 1, config.smooth_sigma)
+    lighting = _window_of(detection.lighting, up, (r0, r1, c0, c1))
+    flat = _flatten(values, lighting, detection.channel.multiplicative)
+
+    # Distances to the detection's edge, inside and outside, give the core and
+    # the ring without large structuring elements.
+    det8 = detected.astype(np.uint8)
+    inside_dist = cv2.distanceTransform(det8, cv2.DIST_L2, 3)
+    outside_dist = cv2.distanceTransform(1 - det8, cv2.DIST_L2, 3)
+    margin = max(2.0, 0.15 * radius)
+    core = inside_dist > margin
+    if core.sum() < 4:
+        core = detected
+    ring = (outside_dist > margin) & (outside_dist <= margin + max(3.0, 0.3 * radius))
+    ring &= cv2.dilate(others.astype(np.uint8), np.ones((5, 5), np.uint8)) == 0
+    if ring.sum() < 8:
+        ring = outside_dist > margin
+    if ring.sum() < 8:
+        return _fallback(detected, (r0, c0)), False
+    level = _level(window, flat, lighting, core, ring, detection.channel)
+    if level is None:
+        return _fallback(detected, (r0, c0)), False
+    if detection.channel.multiplicative and detection.polarity == "light":
+        # A sensor's ceiling hides how much brighter than its ground a light
+        # rock is; where it clips, the rock is at least at its own level.
+        ceiling = (window.max(axis=2) if window.ndim == 3 else window) >= _CEILING
+        # Clipped ground (a glaring corner) stays ground: only what already rises is lifted.
+        ceiling &= level > 0.25
+        level[ceiling] = np.maximum(level[ceiling], 1.0)
+    count, labels = cv2.connectedComponents((level > 0.5).astype(np.uint8), connectivity=4)
+    overlap = np.bincount(labels[core], minlength=count)
+    overlap[0] = 0
+    if overlap.max() == 0:
+        return _fallback(detected, (r0, c0)), False
+    mask = _fill_holes(labels == int(np.argmax(overlap)))
+    if mask.sum() < 0.25 * detected.sum():
+        return _fallback(detected, (r0, c0)), False
+    coverage = np.clip(level, 0.0, 1.0).astype(np.float32)
+    # Only this rock's own edge: filled holes count as rock, anything beyond
+    # a pixel of its mask as ground.
+    coverage[mask & (coverage < 0.5)] = 1.0
+    coverage[~(cv2.dilate(mask.astype(np.uint8), _disk(1)) > 0)] = 0.0
+    coverage[~mask & (coverage >= 0.5)] = 0.49
+    touching = (
+        (r0 > 0 and mask[0].any())
+        or (r1 < rows and mask[-1].any())
+        or (c0 > 0 and mask[:, 0].any())
+        or (c1 < cols and mask[:, -1].any())
+    )
+    return RockMask(mask=mask, coverage=coverage, origin_rowcol=(r0, c0)), bool(touching)
+
+
+def _level(
+    window: NDArray[np.float32],
+    flat: NDArray[np.float32],
+    lighting: NDArray[np.float32],
+    core: NDArray[np.bool_],
+    ring: NDArray[np.bool_],
+    channel: _Channel,
+) -> NDArray[np.float32] | None:
+    """Where each pixel lies from the ground's level (0) to the rock's (1).
+
+    A gray photo is measured by its flattened brightness. In colour, rock and
+    ground are told apart along Fisher's discriminant of the flattened
+    brightness and the smoothed hue (two colour differences), from the core's
+    and the ring's means and pooled covariance: a rock's hue then counts as
+    well as its brightness, and ground texture, which mostly varies the
+    ground's brightness, counts less; brightness keeps at least half of the
+    step between the two. Either way the levels are medians over the core and
+    the ring.
+    """
+    import cv2
+
+    core_at, ring_at = _sample_at(core), _sample_at(ring)
+    projected = flat
+    flat_values = flat.ravel()
+    rock_lum, ground_lum = flat_values[core_at], flat_values[ring_at]
+    if window.ndim == 3 and channel.name == "luminance":
+        inverse = 1.0 / (np.maximum(lighting, 0.0) + np.float32(0.05))
+        # Red and blue less luminance, flattened like the brightness. Hue varies
+        # slowly on a rock and JPEG stores it in coarse blocks: the outline's
+        # position is left to the brightness, whose edge is sharp.
+        hue = cv2.transform(window, _HUE_MATRIX) * inverse[..., None]
+        hue = cv2.GaussianBlur(hue, (0, 0), _HUE_SIGMA).reshape(-1, 2)
+        features_r = np.column_stack([rock_lum, hue[core_at]]).astype(np.float64)
+        features_g = np.column_stack([ground_lum, hue[ring_at]]).astype(np.float64)
+        if features_r.shape[0] > 8 and features_g.shape[0] > 8:
+            pooled = 0.5 * (np.cov(features_r.T) + np.cov(features_g.T))
+            pooled[np.diag_indices(3)] += 1e-6 * max(float(np.trace(pooled)), 1e-9)
+            difference = features_r.mean(axis=0) - features_g.mean(axis=0)
+            weights = np.linalg.solve(pooled, difference)
+            # Brightness carries at least half of the step, so that the
+            # outline stays at its sharp edge (hue is smoothed, and on a black
+            # ground it would otherwise take over).
+            from_brightness, from_hue = weights[0] * difference[0], weights[1:] @ difference[1:]
+            if from_hue > from_brightness > 0:
+                weights[1:] *= from_brightness / from_hue
+            elif from_brightness <= 0:
+                weights = np.array([1.0, 0.0, 0.0])
+            weights = weights.astype(np.float32)
+            projected = flat * weights[0] + (hue @ weights[1:]).reshape(flat.shape)
+    values = projected.ravel()
+    rock_level = float(np.median(values[core_at]))
+    ground_level = float(np.median(values[ring_at]))
+    step = rock_level - ground_level
+    if not math.isfinite(step) or abs(step) < 1e-9:
+        return None
+    return ((projected - np.float32(ground_level)) / np.float32(step)).astype(np.float32)
+
+
+def _sample_at(mask: NDArray[np.bool_], limit: int = 4096) -> NDArray[np.int64]:
+    """Flat indices of at most about ``limit`` evenly spaced pixels of a mask:
+    the statistics of a window need no more."""
+    at = np.flatnonzero(mask)
+    return at[:: max(1, at.size // limit)]
+
+
+def _disk(radius: int) -> NDArray[np.uint8]:
+    import cv2
+
+    return cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * radius + 1, 2 * radius + 1))
+
+
+def _fallback(detected: NDArray[np.bool_], origin: tuple[int, int]) -> RockMask | None:
+    mask = _fill_holes(detected)
+    if not mask.any():
+        return None
+    return RockMask(mask=mask, coverage=mask.astype(np.float32), origin_rowcol=origin)
+
+
+def _fill_holes(mask: NDArray[np.bool_]) -> NDArray[np.bool_]:
+    """The mask with every enclosed hole filled (flood fill of the ground from outside)."""
+    import cv2
+
+    padded = np.zeros((mask.shape[0] + 2, mask.shape[1] + 2), np.uint8)
+    padded[1:-1, 1:-1] = mask
+    flood = np.zeros((padded.shape[0] + 2, padded.shape[1] + 2), np.uint8)
+    cv2.floodFill(padded, flood, (0, 0), 2)
+    return padded[1:-1, 1:-1] != 2
+
+
+def _from_alpha(
+    alpha: NDArray[np.float32], scale_rowcol: tuple[float, float], config: SegmentConfig, all_rocks: bool
+) -> Segmentation:
+    """Rocks cut out by an alpha channel: its opaque regions, alpha as coverage."""
+    import cv2
+
+    rows, cols = alpha.shape
     min_area = max(12.0, config.min_area_fraction * rows * cols)
-    cleaned = []
-    for mask in masks:
-        radius = max(1, int(math.sqrt(mask.sum() / math.pi) * 0.05))
-        kernel = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * radius + 1, 2 * radius + 1))
-        opened = cv2.morphologyEx(mask.astype(np.uint8), cv2.MORPH_OPEN, kernel)
-        count, labels, stats, _ = cv2.connectedComponentsWithStats(opened, connectivity=8)
-        if count <= 1:
-            continue
-        largest = 1 + int(np.argmax(stats[1:, cv2.CC_STAT_AREA]))
-        region = ndimage.binary_fill_holes(labels == largest)
-        if region.sum() >= min_area:
-            cleaned.append(region)
-    if not cleaned:
-        raise NoRockFoundError("no rock found: nothing stands out from the ground")
-    cleaned.sort(key=lambda m: -int(m.sum()))
-    if not all_rocks:
-        cleaned = cleaned[:1]
-    out = np.zeros((rows, cols), np.int32)
-    for index, region in enumerate(cleaned, start=1):
-        out[region & (out == 0)] = index
-    return Segmentation(labels=out, scale=float(scale), polarity=polarity, n_rocks=len(cleaned))
+    _, labels, stats, _ = cv2.connectedComponentsWithStats((alpha >= 0.5).astype(np.uint8), connectivity=8)
+    areas = stats[1:, cv2.CC_STAT_AREA]
+    order = [int(i) for i in np.argsort(-areas, kind="stable") if areas[i] >= min_area]
+    if not order:
+        raise NoRockFoundError("no rock found: the alpha channel cuts out nothing large enough")
+    if all_rocks:
+        order = [i for i in order if areas[i] >= config.min_relative_area * areas[order[0]]]
+    else:
+        order = order[:1]
+    rocks, out = [], np.zeros((rows, cols), np.int32)
+    for index, i in enumerate(order, start=1):
+        mask = _fill_holes(labels == i + 1)
+        coverage = np.where(mask, np.maximum(alpha, 0.5), np.minimum(alpha, 0.49)).astype(np.float32)
+        coverage[~(cv2.dilate(mask.astype(np.uint8), _disk(1)) > 0)] = 0.0
+        rocks.append(RockMask(mask=mask, coverage=coverage, origin_rowcol=(0, 0)))
+        out[mask & (out == 0)] = index
+    return Segmentation(
+        labels=out, rocks=tuple(rocks), scale_rowcol=scale_rowcol, polarity="light", channel="alpha"
+    )
