@@ -254,7 +254,16 @@ def fit_superformula(
             # An aspect within a few percent of 1 is no elongation: only the
             # needle tips of a spiky shape, which no photo shows, can tell it.
             local, free_b = _refine(points, replace(local, b=1.0), free_b=False, robust=config.robust), False
-        return _rms_percent(sample, local.params, local.alpha), local, free_b
+        rms = _rms_percent(sample, local.params, local.alpha)
+        if config.robust and rms > config.good_percent:
+            # The soft-L1 loss lets far rays go; where the curve really reaches
+            # them (needle tips of a spiky shape), plain least squares from
+            # there fits them too. The RMS error decides, as it does everywhere.
+            plain = _refine(points, local, free_b=free_b, robust=False)
+            plain_rms = _rms_percent(sample, plain.params, plain.alpha)
+            if plain_rms < rms:
+                local, rms = plain, plain_rms
+        return rms, local, free_b
 
     starts = _global_search(sample, config)
     # A free aspect may settle in a poor basin where a = b would not: try both.

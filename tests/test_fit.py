@@ -193,9 +193,12 @@ def test_turning_and_scaling_an_outline_turns_and_scales_the_fit(seed, turn, sca
     assert moved.mean_radius == pytest.approx(scale, rel=1e-9)
     # Both fits draw the outline they were given...
     assert base.rms_percent < 1.0 and moved.rms_percent < 1.0
-    # ...so the second fit's shape, turned back, is the first fit's shape.
+    # ...so the second fit's shape, turned back, is the first fit's shape. The
+    # median ray is compared: at a needle tip a hundredth of a degree moves the
+    # sampled radius by several percent.
     back = true_curve(moved.params, moved.angle_deg - turn, 180)
-    assert rms_percent(back, true_curve(base.params, base.angle_deg, 180)) < 2.0
+    ref = true_curve(base.params, base.angle_deg, 180)
+    assert np.median(np.abs(back - ref)) / ref.mean() < 0.01
 
 
 # ---------------------------------------------------------------- rendered photos

@@ -146,7 +146,9 @@ def test_moving_a_disc_moves_its_outline_and_keeps_its_area(shift_row, shift_col
     np.testing.assert_allclose(
         moved.centroid_rowcol - base.centroid_rowcol, [shift_row, shift_col], atol=0.05
     )
-    assert moved.area_px == pytest.approx(base.area_px, rel=0.01)
+    # Marching squares misplaces the outline by a small fraction of a pixel
+    # depending on the sub-pixel position: an area error that shrinks as 1/radius.
+    assert moved.area_px == pytest.approx(base.area_px, rel=0.1 / radius)
 
 
 @given(k=st.integers(1, 3))
