@@ -563,13 +563,16 @@ def _texture(
 
     out = np.zeros((rows, cols), np.float32)
     for s in scales:
-        step = max(1, s)
+        # A small frame cannot hold a coarse scale: keep at least 4 samples a side,
+        # or the few samples left would add an offset, not a texture.
+        step = max(1, min(s, min(rows, cols) // 4))
         small = (max(2, -(-rows // step)), max(2, -(-cols // step)))
         field_ = rng.standard_normal(small, dtype=np.float32)
         smooth = cv2.GaussianBlur(field_, (0, 0), 1.0)
         big = cv2.resize(smooth, (cols, rows), interpolation=cv2.INTER_CUBIC)
-        out += big / max(float(big.std()), 1e-9)
-    out /= max(float(out.std()), 1e-9)
+        big -= big.mean()
+        out += big / max(float(big.std()), 1e-6)
+    out /= max(float(out.std()), 1e-6)
     return out
 
 

@@ -304,3 +304,15 @@ def test_render_is_fast_next_to_drawing_its_own_noise():
     render = best(lambda: render_photo(STAR, RenderConfig(), rng=1))
     noise = best(lambda: rng.standard_normal((480, 640, 3)))
     assert render < 8 * noise, (render, noise)
+
+
+@pytest.mark.parametrize("size", [16, 32, 48, 64, 96])
+def test_small_photos_have_a_ground_of_the_set_brightness(size):
+    # Texture scales coarser than a small frame must not shift its brightness.
+    photo = render_photo(
+        SuperformulaParams(4, 4, 2, 2, 2),
+        RenderConfig(rows=size, cols=size, gradient=0.0, noise=0.0, ground_texture=0.08),
+        rng=3,
+    )
+    border = np.concatenate([photo.pixels[0], photo.pixels[-1]]).astype(float) / 255
+    assert 0.2 < np.median(border) < 0.7
