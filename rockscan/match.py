@@ -220,7 +220,8 @@ class ScanTemplates:
 
     spectra: NDArray[np.complex64]
     mean_spectrum: NDArray[np.complex128]
-    weight_sq_spectrum: NDArray[np.complex128]
+    weight_sq_spectrum: NDArray[np.complex128] | None
+    weight_sq_rays: NDArray[np.float64] | None
     eigen_offsets: NDArray[np.float64]
     mean_norm_sq: float
     shape_weights: NDArray[np.float64]
@@ -240,10 +241,14 @@ class ScanTemplates:
         # mean face and the squared weights feed the whole-face norm, where large
         # terms cancel, so they keep double precision.
         channels = basis.components.reshape(-1, *shape) * w_map
+        same_rays = bool(np.array_equal(w_map, np.broadcast_to(w_map[:1], w_map.shape)))
         return cls(
             spectra=_template_spectra(channels, np.complex64),
             mean_spectrum=_template_spectra((w_map * basis.mean.reshape(shape))[None], np.complex128),
-            weight_sq_spectrum=_template_spectra((w_map**2)[None], np.complex128),
+            # The same reference information on every ray (the circle, the radii
+            # face) makes ||Gamma_a||**2 the same at every rotation: no FFT needed.
+            weight_sq_spectrum=None if same_rays else _template_spectra((w_map**2)[None], np.complex128),
+            weight_sq_rays=(w_map[0] ** 2) if same_rays else None,
             eigen_offsets=basis.components @ basis.mean,
             mean_norm_sq=float(basis.mean @ basis.mean),
             shape_weights=np.asarray(basis.weights),
@@ -305,7 +310,11 @@ class ScanTemplates:
         """
         spectrum = np.fft.rfft(q, axis=0) if spectrum is None else spectrum
         with_mean = self._correlate(spectrum, self.mean_spectrum)[:, 0]
-        face_sq = self._correlate(np.fft.rfft(q * q, axis=0), self.weight_sq_spectrum)[:, 0]
+        if self.weight_sq_rays is not None:
+            face_sq = np.full(q.shape[0], float(np.sum(q * q @ self.weight_sq_rays)))
+        else:
+            assert self.weight_sq_spectrum is not None
+            face_sq = self._correlate(np.fft.rfft(q * q, axis=0), self.weight_sq_spectrum)[:, 0]
         return face_sq - 2.0 * with_mean + self.mean_norm_sq
 
     def _correlate(
