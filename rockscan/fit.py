@@ -357,7 +357,13 @@ def _centered_model(params: SuperformulaParams, alpha: float, n_angles: int) -> 
     theta = polar_angles(n_angles)
     with np.errstate(over="ignore"):
         about_origin = params.radii(np.mod(theta - alpha, _TWO_PI))
-    if not np.all(np.isfinite(about_origin)) or np.any(about_origin <= 0):
+    # A pole between the rays shows as an absurd spike: no usable model (the
+    # search moves on), rather than an overflow in the centroid.
+    if (
+        not np.all(np.isfinite(about_origin))
+        or np.any(about_origin <= 0)
+        or about_origin.max() > 1e4 * np.median(about_origin)
+    ):
         return np.zeros(n_angles)
     centered, _ = recenter_radii(about_origin)
     mean = centered.mean()
