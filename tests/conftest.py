@@ -13,8 +13,17 @@ from rockscan.io import default_library, default_spec_path, read_spec
 from rockscan.library import Library, ShapeSpec
 from rockscan.superformula import SuperformulaParams
 
+# The suite is deterministic (the same examples every run, so a failure can be
+# replayed anywhere); "explore" draws new examples each run, "thorough" many more.
 settings.register_profile(
-    "default", deadline=None, max_examples=25, suppress_health_check=[HealthCheck.too_slow]
+    "default",
+    deadline=None,
+    max_examples=25,
+    derandomize=True,
+    suppress_health_check=[HealthCheck.too_slow],
+)
+settings.register_profile(
+    "explore", deadline=None, max_examples=25, suppress_health_check=[HealthCheck.too_slow]
 )
 settings.register_profile("thorough", deadline=None, max_examples=200)
 settings.load_profile(os.environ.get("HYPOTHESIS_PROFILE", "default"))

@@ -65,7 +65,8 @@ def test_every_template_matches_itself_at_distance_zero(default_lib, hu, efd):
 )
 def test_hu_distances_ignore_turning_scaling_moving_and_start(default_lib, hu, name, angle, radius, roll):
     contour = placed(default_lib, name, angle_deg=angle, radius=radius, roll=roll, offset=(321.0, -45.0))
-    np.testing.assert_allclose(hu.distances(contour), hu.distances(placed(default_lib, name)), atol=1e-6)
+    # OpenCV computes the moments of a float32 contour: equal to ~1e-5.
+    np.testing.assert_allclose(hu.distances(contour), hu.distances(placed(default_lib, name)), atol=1e-5)
 
 
 @given(
