@@ -875,11 +875,9 @@ def figure_grids(matcher: Matcher, path: Path, dpi: int) -> None:
 # ---------------------------------------------------------------- the README section
 
 
-def _link(path: Path) -> str:
-    try:
-        return path.resolve().relative_to(ROOT).as_posix()
-    except ValueError:
-        return path.resolve().as_posix()
+def _link(path: Path, doc_folder: Path) -> str:
+    """A figure's link as written in a document in ``doc_folder``."""
+    return Path(os.path.relpath(path.resolve(), doc_folder.resolve())).as_posix()
 
 
 def _label(name: str) -> str:
@@ -1273,7 +1271,7 @@ def write_doc(
     grids, methods, face = facts["grids"], facts["methods"], facts["face"]
     assert isinstance(noise, dict) and isinstance(rotation, dict) and isinstance(params, dict)
     assert isinstance(grids, dict) and isinstance(methods, dict) and isinstance(face, dict)
-    links = {key: _link(value) for key, value in figures.items()}
+    links = {key: _link(value, path.parent) for key, value in figures.items()}
     default_i = [r for r in table_i if r["method"] == "default"]
     default_v = {str(r["shape"]): r for r in table_v if r["method"] == "default"}
     paper_v = {str(r["shape"]): r for r in table_v if r["method"] == "paper"}
