@@ -25,7 +25,6 @@ _API = {
     "SpecError": "rockscan.errors",
     # shapes and radii
     "SuperformulaParams": "rockscan.superformula",
-    "superformula": "rockscan.superformula",
     "polar_angles": "rockscan.polar",
     "contour_radii": "rockscan.polar",
     "symmetry_order": "rockscan.polar",
@@ -49,7 +48,6 @@ _API = {
     "family": "rockscan.fit",
     # photos
     "SegmentConfig": "rockscan.segment",
-    "segment": "rockscan.segment",
     "trace_outline": "rockscan.outline",
     "ClassifyConfig": "rockscan.pipeline",
     "classify_image": "rockscan.pipeline",
@@ -79,10 +77,34 @@ _API = {
     "default_spec_path": "rockscan.io",
 }
 
+#: The stages and edges, reachable as ``rockscan.<name>`` (e.g. ``rockscan.segment.segment``).
+_MODULES = (
+    "errors",
+    "superformula",
+    "polar",
+    "information",
+    "eigen",
+    "library",
+    "match",
+    "segment",
+    "outline",
+    "pipeline",
+    "render",
+    "io",
+    "plot",
+    "fit",
+    "triage",
+    "novelty",
+    "report",
+    "baselines",
+)
+
 __all__ = [*sorted(_API), "__version__"]
 
 
 def __getattr__(name: str) -> Any:
+    if name in _MODULES:
+        return importlib.import_module(f"rockscan.{name}")
     module = _API.get(name)
     if module is None:
         raise AttributeError(f"module 'rockscan' has no attribute {name!r}")

@@ -14,6 +14,8 @@ import rockscan
 @pytest.mark.parametrize("name", [n for n in rockscan.__all__ if n != "__version__"])
 def test_public_names_resolve_and_are_documented(name):
     obj = getattr(rockscan, name)
+    # A public name must never be shadowed by a submodule of the same name.
+    assert not inspect.ismodule(obj), f"rockscan.{name} is a module"
     doc = inspect.getdoc(obj) or ""
     assert len(doc) > 20, f"{name} needs a docstring"
     if inspect.isfunction(obj) and obj.__module__.startswith("rockscan"):
@@ -36,3 +38,13 @@ def test_importing_the_package_and_cli_stays_light():
     )
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert out.stdout.strip() == ""
+
+
+def test_stage_modules_are_reachable_and_their_functions_too():
+    import importlib
+
+    assert rockscan.segment.segment is importlib.import_module("rockscan.segment").segment
+    assert callable(rockscan.superformula.superformula)
+    # Importing a stage does not shadow the public names.
+    importlib.import_module("rockscan.pipeline")
+    assert not inspect.ismodule(rockscan.classify_image)
