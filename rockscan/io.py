@@ -36,6 +36,7 @@ __all__ = [
     "IMAGE_SUFFIXES",
     "LIBRARY_FORMAT",
     "LIBRARY_VERSION",
+    "data_path",
     "default_library",
     "default_spec_path",
     "load_library",
@@ -322,11 +323,31 @@ def load_library(path: str | os.PathLike[str]) -> Library:
         raise LibraryError(f"{path}: library file is inconsistent ({_first_line(exc)})") from None
 
 
-def default_spec_path() -> Path:
-    """Path of the built-in default library spec shipped with the package."""
+def data_path(name: str) -> Path:
+    """Path of a file shipped in rockscan's ``data/`` folder.
+
+    Parameters
+    ----------
+    name : str
+        Path within ``data/``, e.g. ``"default_library.toml"`` or ``"examples"``.
+
+    Returns
+    -------
+    Path
+        Inside the installed package, or in the source tree's ``data/`` folder
+        when rockscan runs from a checkout that was not installed.
+    """
     from importlib.resources import files
 
-    return Path(str(files("rockscan._data") / "default_library.toml"))
+    try:
+        return Path(str(files("rockscan._data") / name))
+    except ModuleNotFoundError:
+        return Path(__file__).resolve().parent.parent / "data" / name
+
+
+def default_spec_path() -> Path:
+    """Path of the built-in default library spec shipped with the package."""
+    return data_path("default_library.toml")
 
 
 _DEFAULT_CACHE: dict[object, Library] = {}

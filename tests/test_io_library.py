@@ -192,3 +192,10 @@ def test_radii_files(tmp_path):
         read_radii(tmp_path / "short.txt")
     with pytest.raises(ParameterError, match="not found"):
         read_radii(tmp_path / "none.txt")
+
+
+def test_data_files_are_found_installed_or_not():
+    from rockscan.io import data_path
+
+    assert data_path("default_library.toml").is_file()
+    assert (data_path("examples") / "coin.png").is_file()

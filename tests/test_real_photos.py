@@ -8,8 +8,6 @@ and bright markers, holes filled), not from rockscan.
 from __future__ import annotations
 
 import json
-from importlib.resources import files
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -19,9 +17,10 @@ from scipy import ndimage
 from skimage import data, filters, measure, segmentation
 
 from rockscan.cli import main
+from rockscan.io import data_path
 from rockscan.pipeline import classify_image, classify_path
 
-EXAMPLES = Path(str(files("rockscan._data") / "examples"))
+EXAMPLES = data_path("examples")
 
 
 @pytest.fixture(scope="module")
