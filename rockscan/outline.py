@@ -19,6 +19,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from rockscan.errors import NoRockFoundError, ParameterError
+from rockscan.polar import polygon_area_centroid
 
 __all__ = ["Outline", "polygon_area_centroid", "trace_outline", "work_to_photo"]
 
@@ -70,32 +71,6 @@ def work_to_photo(
     scale = np.broadcast_to(np.asarray(scale, dtype=np.float64), (2,))
     origin = np.asarray(origin_rowcol, dtype=np.float64)
     return (np.asarray(rowcol, dtype=np.float64) + origin + 0.5) * scale - 0.5
-
-
-def polygon_area_centroid(contour_rowcol: ArrayLike) -> tuple[float, NDArray[np.float64]]:
-    """Area and area centroid of a closed polygon.
-
-    Parameters
-    ----------
-    contour_rowcol : (n_points, 2) array_like of float
-        Vertices in order; the last joins the first.
-
-    Returns
-    -------
-    area : float
-        Enclosed area (positive whatever the orientation).
-    centroid_rowcol : (2,) ndarray of float
-        The vertex mean when the polygon has no area.
-    """
-    pts = np.asarray(contour_rowcol, dtype=np.float64)
-    r, c = pts[:, 0], pts[:, 1]
-    r1, c1 = np.roll(r, -1), np.roll(c, -1)
-    cross = r * c1 - r1 * c
-    signed = cross.sum() / 2.0
-    if abs(signed) < 1e-12:
-        return 0.0, pts.mean(axis=0)
-    centroid = np.array([((r + r1) * cross).sum(), ((c + c1) * cross).sum()]) / (6.0 * signed)
-    return abs(float(signed)), centroid
 
 
 def trace_outline(

@@ -16,6 +16,7 @@ from rockscan.errors import ParameterError
 __all__ = [
     "contour_radii",
     "polar_angles",
+    "polygon_area_centroid",
     "polygon_centroid_xy",
     "radii_to_xy",
     "recenter_radii",
@@ -149,8 +150,34 @@ def radii_to_xy(radii: ArrayLike, angle_deg: float = 0.0) -> NDArray[np.float64]
     return np.column_stack([radii * np.cos(theta), radii * np.sin(theta)])
 
 
+def polygon_area_centroid(points: ArrayLike) -> tuple[float, NDArray[np.float64]]:
+    """Area and area centroid of a simple closed polygon (shoelace formula).
+
+    Parameters
+    ----------
+    points : (n, 2) array_like of float
+        Vertices in order, as (x, y) or (row, col); the last joins the first.
+
+    Returns
+    -------
+    area : float
+        Enclosed area, positive whatever the orientation.
+    centroid : (2,) ndarray of float
+        In the coordinates given; the vertex mean when the polygon has no area.
+    """
+    pts = np.asarray(points, dtype=np.float64)
+    u, v = pts[:, 0], pts[:, 1]
+    u1, v1 = np.roll(u, -1), np.roll(v, -1)
+    cross = u * v1 - u1 * v
+    signed = cross.sum() / 2.0
+    if abs(signed) < 1e-12:
+        return 0.0, pts.mean(axis=0)
+    centroid = np.array([((u + u1) * cross).sum(), ((v + v1) * cross).sum()]) / (6.0 * signed)
+    return abs(float(signed)), centroid
+
+
 def polygon_centroid_xy(xy: ArrayLike) -> NDArray[np.float64]:
-    """Area centroid of a simple closed polygon (shoelace formula).
+    """Area centroid of a simple closed polygon given as (x, y) vertices.
 
     Parameters
     ----------
@@ -162,14 +189,7 @@ def polygon_centroid_xy(xy: ArrayLike) -> NDArray[np.float64]:
     centroid : (2,) ndarray of float
         The vertex mean when the polygon has no area.
     """
-    xy = np.asarray(xy, dtype=np.float64)
-    x, y = xy[:, 0], xy[:, 1]
-    x1, y1 = np.roll(x, -1), np.roll(y, -1)
-    cross = x * y1 - x1 * y
-    area = cross.sum() / 2.0
-    if abs(area) < 1e-12:
-        return xy.mean(axis=0)
-    return np.array([((x + x1) * cross).sum(), ((y + y1) * cross).sum()]) / (6.0 * area)
+    return polygon_area_centroid(xy)[1]
 
 
 def recenter_radii(radii: ArrayLike) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
