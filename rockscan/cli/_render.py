@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 import os
+import sys
 
 import click
 
@@ -183,7 +184,10 @@ def render_cmd(
     except OSError as exc:
         raise ParameterError(f"{out_dir}: cannot create the folder ({exc.strerror or exc})") from None
     total = count if count is not None else len(shapes)
-    for i in range(total):
+    from tqdm import tqdm
+
+    # A progress bar for a person watching a long run; none in pipes and logs.
+    for i in tqdm(range(total), unit="photo", file=sys.stderr, disable=total < 20 or not sys.stderr.isatty()):
         rng = np.random.default_rng([seed, i])
         if rocks == 1:
             shape = shapes[i % len(shapes)]
