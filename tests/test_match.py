@@ -100,7 +100,9 @@ def test_fourier_scan_equals_scoring_every_rotation(face_config):
     scanned = rotation_scores(sample, lib, metric="eigenspace")
     np.testing.assert_allclose(scanned**2, eps**2, atol=1e-6 * scale_sq)
     whole_sq = eps**2 + dffs[:, None] ** 2
-    np.testing.assert_allclose(rotation_scores(sample, lib, metric="face") ** 2, whole_sq, atol=1e-6 * scale_sq)
+    np.testing.assert_allclose(
+        rotation_scores(sample, lib, metric="face") ** 2, whole_sq, atol=1e-6 * scale_sq
+    )
     assert np.array_equal(np.argmin(scanned, axis=0), np.argmin(eps, axis=0))
 
 
@@ -179,8 +181,12 @@ def test_reported_distance_is_the_ranked_distance(default_lib, default_specs):
 def test_a_two_shape_library_is_matched_by_whole_faces():
     # One eigenface: a turned sample's projection can reach either shape, so
     # "auto" ranks by the whole-face distance.
-    lib = Library.from_shapes([ShapeSpec("disc", SuperformulaParams(0, 0, 1, 1, 1)),
-                               ShapeSpec("blunt", PAPER_SHAPES["three-faced-blunt"])])
+    lib = Library.from_shapes(
+        [
+            ShapeSpec("disc", SuperformulaParams(0, 0, 1, 1, 1)),
+            ShapeSpec("blunt", PAPER_SHAPES["three-faced-blunt"]),
+        ]
+    )
     assert lib.basis.n_components == 1
     assert MatchConfig().resolved_metric(lib) == "face"
     rng = np.random.default_rng(8)
@@ -197,6 +203,9 @@ def test_the_residual_cutoff_rejects_samples_far_from_face_space(default_lib, de
     m = match_radii(noisy, default_lib)
     assert m.residual > 0
     assert not match_radii(noisy, default_lib, MatchConfig(residual_cutoff=0.5 * m.residual)).interesting
-    kept = match_radii(noisy, default_lib, MatchConfig(residual_cutoff=2 * m.residual, distance_cutoff=10.0,
-                                                        mscore_cutoff=-1.0))
+    kept = match_radii(
+        noisy,
+        default_lib,
+        MatchConfig(residual_cutoff=2 * m.residual, distance_cutoff=10.0, mscore_cutoff=-1.0),
+    )
     assert kept.interesting
