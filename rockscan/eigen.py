@@ -144,18 +144,33 @@ class EigenBasis:
         -------
         eps : (..., n_faces) ndarray of float
         """
-        omega = self.project(faces)
-        diff = omega[..., None, :] - self.weights
-        return np.sqrt(np.einsum("...kc,...kc->...k", diff, diff))
+        return self.distances_and_residual(faces)[0]
 
     def residual(self, faces: ArrayLike) -> NDArray[np.float64]:
-        """Distance of faces from face space (Turk & Pentland's DFFS)."""
+        """Distance of faces from face space (Turk & Pentland's DFFS).
+
+        Returns
+        -------
+        dffs : (...) ndarray of float
+        """
+        return self.distances_and_residual(faces)[1]
+
+    def distances_and_residual(self, faces: ArrayLike) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        """Both :meth:`distances` and :meth:`residual`, from one projection.
+
+        Returns
+        -------
+        eps : (..., n_faces) ndarray of float
+        dffs : (...) ndarray of float
+        """
         faces = np.asarray(faces, dtype=np.float64)
         omega = self.project(faces)
+        diff = omega[..., None, :] - self.weights
+        eps = np.sqrt(np.einsum("...kc,...kc->...k", diff, diff))
         flat = faces.reshape(*omega.shape[:-1], self.mean.size) - self.mean
         inside = np.einsum("...c,...c->...", omega, omega)
         total = np.einsum("...p,...p->...", flat, flat)
-        return np.sqrt(np.maximum(total - inside, 0.0))
+        return eps, np.sqrt(np.maximum(total - inside, 0.0))
 
 
 def _trailing_dims(shape: tuple[int, ...], n_pixels: int) -> int:

@@ -375,8 +375,8 @@ def _scan(
         q = sample_term(radii, config)
     if not scan:
         face = _face_at(radii, library, 0, q)
-        eps = library.basis.distances(face)[None, :]
-        residual = library.basis.residual(face)
+        eps, residual = library.basis.distances_and_residual(face)
+        eps = eps[None, :]
         return {m: eps if m == "eigenspace" else np.sqrt(eps**2 + residual**2) for m in metrics}
     if config.grid == "polar":
         assert q is not None
@@ -385,8 +385,8 @@ def _scan(
     # The paper's Cartesian grid map: every rotation needs its own face.
     turned = np.stack([np.roll(radii, -a) for a in range(config.n_angles)])
     faces = information_face(turned, config)
-    eps = library.basis.distances(faces)
-    residual = library.basis.residual(faces)[:, None]
+    eps, residual = library.basis.distances_and_residual(faces)
+    residual = residual[:, None]
     return {m: eps if m == "eigenspace" else np.sqrt(eps**2 + residual**2) for m in metrics}
 
 
@@ -442,8 +442,8 @@ def match_radii(radii: ArrayLike, library: Library, config: MatchConfig | None =
             angle_deg = 0.0
         angles[k] = angle_deg
     face = _face_at(radii, library, int(best_shift[k]), q)
-    eps_best = float(library.basis.distances(face)[k])
-    residual = float(library.basis.residual(face))
+    eps_all, dffs = library.basis.distances_and_residual(face)
+    eps_best, residual = float(eps_all[k]), float(dffs)
     # The scan's distances come from expanded squares, whose rounding leaves
     # ~1e-8 where the truth is 0; the nearest shape's is recomputed directly
     # so that a library shape matched to itself scores exactly w = 0, MScore 1.
