@@ -19,6 +19,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from rockscan._threads import one_blas_thread
 from rockscan.errors import ParameterError
 
 __all__ = ["EigenBasis"]
@@ -58,6 +59,7 @@ class EigenBasis:
             raise ParameterError("EigenBasis: weights must be (n_faces, n_components)")
 
     @classmethod
+    @one_blas_thread
     def from_faces(
         cls, faces: ArrayLike, *, rtol: float = 1e-10, n_components: int | None = None
     ) -> EigenBasis:
@@ -118,6 +120,7 @@ class EigenBasis:
         """Number of eigenfaces kept."""
         return int(self.eigenvalues.size)
 
+    @one_blas_thread
     def project(self, faces: ArrayLike) -> NDArray[np.float64]:
         """Coordinates ``Omega`` of faces in face space.
 
@@ -155,6 +158,7 @@ class EigenBasis:
         """
         return self.distances_and_residual(faces)[1]
 
+    @one_blas_thread
     def distances_and_residual(self, faces: ArrayLike) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
         """Both :meth:`distances` and :meth:`residual`, from one projection.
 

@@ -43,6 +43,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from rockscan._threads import one_blas_thread
 from rockscan.errors import ParameterError
 from rockscan.polar import polar_angles, recenter_radii, resample_radii, symmetry_order
 from rockscan.superformula import SuperformulaParams
@@ -180,6 +181,7 @@ class FitResult:
         return _centered_model(self.params, math.radians(self.angle_deg), n_angles) * self.mean_radius
 
 
+@one_blas_thread
 def fit_superformula(
     radii: ArrayLike,
     *,
@@ -744,6 +746,7 @@ def parse_vary(text: str) -> tuple[str, tuple[float, ...]]:
     return name, values
 
 
+@one_blas_thread
 def family(
     base: ShapeSpec,
     vary: Sequence[tuple[str, Sequence[float]]],

@@ -17,6 +17,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from rockscan._threads import one_blas_thread
 from rockscan.eigen import EigenBasis
 from rockscan.errors import LibraryError, ParameterError, SpecError
 from rockscan.information import FaceConfig, information_face, reference_weights
@@ -263,6 +264,7 @@ class Library:
         except ValueError:
             raise LibraryError(f"no shape named {name!r} in the library") from None
 
+    @one_blas_thread
     def faces(self) -> NDArray[np.float64]:
         """The library faces as the basis holds them: ``Psi + Omega_k U``."""
         flat = self.basis.mean + self.basis.weights @ self.basis.components

@@ -24,6 +24,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from rockscan._choices import METRICS
+from rockscan._threads import one_blas_thread
 from rockscan.errors import ParameterError
 from rockscan.information import information_face, sample_term
 
@@ -229,6 +230,7 @@ class ScanTemplates:
     n_angles: int
 
     @classmethod
+    @one_blas_thread
     def from_library(cls, library: Library) -> ScanTemplates:
         """Precompute the templates of a library (polar grid only)."""
         config = library.face_config
@@ -261,6 +263,7 @@ class ScanTemplates:
         """Number of eigenfaces."""
         return int(self.eigen_offsets.size)
 
+    @one_blas_thread
     def squared_distances(
         self, q: NDArray[np.float64], metrics: tuple[str, ...] = ("eigenspace",)
     ) -> dict[str, NDArray[np.float64]]:
@@ -336,6 +339,7 @@ def _template_spectra(
     return np.ascontiguousarray(spectra.astype(dtype))
 
 
+@one_blas_thread
 def rotation_scores(radii: ArrayLike, library: Library, *, metric: str = "eigenspace") -> NDArray[np.float64]:
     """Distances of a sample to every library shape at every rotation.
 
@@ -390,6 +394,7 @@ def _scan(
     return {m: eps if m == "eigenspace" else np.sqrt(eps**2 + residual**2) for m in metrics}
 
 
+@one_blas_thread
 def match_radii(radii: ArrayLike, library: Library, config: MatchConfig | None = None) -> Match:
     """Match a sample outline, given as radii, against a library.
 

@@ -13,6 +13,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 from numpy.typing import NDArray
 
+from rockscan._threads import one_blas_thread
 from rockscan.errors import RockscanError
 from rockscan.match import Match, MatchConfig, match_radii
 from rockscan.outline import Outline, trace_outline
@@ -99,6 +100,7 @@ class PhotoResult:
         return [{"path": self.path, **rock.to_dict()} for rock in self.rocks]
 
 
+@one_blas_thread
 def measure_rocks(
     pixels: NDArray[np.generic],
     n_angles: int,
@@ -139,6 +141,7 @@ def measure_rocks(
     return seg, rocks
 
 
+@one_blas_thread
 def classify_image(
     pixels: NDArray[np.generic],
     library: Library,

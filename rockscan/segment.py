@@ -89,6 +89,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from rockscan._choices import POLARITIES
+from rockscan._threads import one_blas_thread
 from rockscan.errors import NoRockFoundError, ParameterError
 
 __all__ = ["RockMask", "SegmentConfig", "Segmentation", "segment", "to_gray"]
@@ -279,6 +280,7 @@ def to_gray(pixels: NDArray[np.generic]) -> NDArray[np.float32]:
     return _unit(arr, np.asarray(pixels).dtype)
 
 
+@one_blas_thread
 def segment(
     pixels: NDArray[np.generic], config: SegmentConfig | None = None, *, all_rocks: bool = False
 ) -> Segmentation:
