@@ -15,7 +15,9 @@ both axes, so one number, ``scale = k``, maps every position back.
 from __future__ import annotations
 
 import contextlib
+import os
 import struct
+import sys
 import warnings
 import zlib
 from collections.abc import Iterator
@@ -31,7 +33,7 @@ from rockscan.errors import ImageReadError, ParameterError
 if TYPE_CHECKING:
     from PIL import Image
 
-__all__ = ["MAX_PIXELS", "ImageData", "read_image"]
+__all__ = ["MAX_DEEP_BYTES", "MAX_PIXELS", "ImageData", "read_image"]
 
 #: Largest photo read, in pixels (a 16000 x 12500 frame); larger files are refused
 #: rather than exhausting memory.
@@ -41,6 +43,12 @@ _SUPPORTED = "PNG, JPEG, TIFF or BMP"
 #: A 16-bit colour photo whose 8-bit rendering stays below this level is dark:
 #: its 16 bits are kept even when that costs memory (see read_image).
 _DARK_8BIT = 64
+#: Most bytes a 16-bit colour decode may take (OpenCV decodes the whole frame);
+#: a larger photo is read at Pillow's 8 bits (a 16-bit RGB frame of 6,600 x
+#: 6,600 pixels fits).
+MAX_DEEP_BYTES = 512 * 2**20
+#: Reducing while decoding keeps the shorter side at least this many pixels.
+_MIN_SIDE = 8
 # Errors Pillow's decoders raise on broken files; anything they raise is the
 # file's fault, not a bug of the caller.
 _DECODE_ERRORS = (OSError, SyntaxError, ValueError, EOFError, struct.error, zlib.error, IndexError, KeyError)
@@ -84,7 +92,7 @@ def read_image(path: Path, *, max_side: int | None = None) -> ImageData:
         raise ParameterError(f"max_side must be a positive number of pixels, got {max_side!r}")
     deep_color = False
     try:
-        with _pillow_limits(), open(path, "rb") as fh, Image.open(fh) as im:
+        with _quiet_decoders(), _pillow_limits(), open(path, "rb") as fh, Image.open(fh) as im:
             if im.format not in _FORMATS:
                 raise ImageReadError(f"{path}: {im.format} images are not supported (use {_SUPPORTED})")
             deep_color = _is_deep_color(im)
@@ -99,8 +107,16 @@ def read_image(path: Path, *, max_side: int | None = None) -> ImageData:
                     decoded = round(full_cols / drafted[1][2])
             factor = _reduction(im.size, max_side)
             im.load()
+            if decoded == 1 and im.size != (full_cols, full_rows):
+                # Pillow 10 has libtiff turn a TIFF upright as it loads (and drops the
+                # tag): the photo is upright already, at the loaded size.
+                full_cols, full_rows = im.size
             # A PNG may carry its EXIF block after the pixels: read it after load().
             orientation = _orientation(im)
+            if deep_color and _deep_bytes(im) > MAX_DEEP_BYTES:
+                # OpenCV decodes a whole frame at once; beyond the budget the 8 bits
+                # Pillow decoded (4 bytes a pixel) are what the photo gives.
+                deep_color = False
             if deep_color and factor > 1 and max(_band_maxima(im)) >= _DARK_8BIT:
                 # OpenCV needs 12 bytes a pixel to decode 16-bit colour; a photo this
                 # large is reduced anyway, and at full range 8 bits lose nothing
@@ -121,7 +137,8 @@ def read_image(path: Path, *, max_side: int | None = None) -> ImageData:
         raise ImageReadError(f"{path}: image is truncated or corrupt ({_first_line(exc)})") from None
     if deep_color:
         try:
-            pixels = _decode_deep(path, factor)
+            with _quiet_decoders():
+                pixels = _decode_deep(path, factor)
         except MemoryError:
             raise ImageReadError(f"{path}: not enough memory to decode this photo") from None
     assert pixels is not None
@@ -174,22 +191,52 @@ def _pillow_limits() -> Iterator[None]:
         Image.MAX_IMAGE_PIXELS = saved
 
 
+@contextlib.contextmanager
+def _quiet_decoders() -> Iterator[None]:
+    """Keep what libpng, libtiff and OpenCV print about a broken file off the terminal.
+
+    They write to the process's standard error themselves, in lines the user did
+    not ask for ("libpng warning: IEND: invalid"); the photo's own error line says
+    what matters. Standard error points at the null device meanwhile, for the
+    whole process: another thread's message written during a decode is lost.
+    """
+    sys.stderr.flush()
+    saved = os.dup(2)
+    null = os.open(os.devnull, os.O_WRONLY)
+    try:
+        os.dup2(null, 2)
+        yield
+    finally:
+        os.dup2(saved, 2)
+        os.close(saved)
+        os.close(null)
+
+
 def _reduction(size: tuple[int, int], max_side: int | None) -> int:
     """Integer reduction keeping the longer side at least ``max_side``; 1 unless
     the photo is more than twice that."""
     longest = max(size)
     if not max_side or longest <= 2 * int(max_side):
         return 1
-    return longest // int(max_side)
+    # A thin photo keeps its short side at 8 pixels or more (the least segmentation
+    # takes), so a photo too thin to hold a rock is refused at its own size.
+    return max(1, min(longest // int(max_side), min(size) // _MIN_SIDE))
 
 
 def _is_deep_color(im: Image.Image) -> bool:
     """A colour (or gray + alpha) photo stored with 16 bits per sample."""
     if im.mode not in {"RGB", "RGBA", "LA"} or im.format not in {"PNG", "TIFF"} or not im.tile:
         return False
-    args = im.tile[0].args
+    # A tile is (codec, extents, offset, args); Pillow 11 names the fields, 10 does not.
+    args = im.tile[0][3]
     rawmode = args[0] if isinstance(args, tuple) and args else args
     return isinstance(rawmode, str) and ";16" in rawmode
+
+
+def _deep_bytes(im: Image.Image) -> int:
+    """Bytes a 16-bit colour photo takes decoded whole and put in RGB order: two
+    copies of 2 bytes a sample (OpenCV gives gray + alpha as 2 samples)."""
+    return im.size[0] * im.size[1] * 4 * len(im.getbands())
 
 
 def _band_maxima(im: Image.Image) -> list[float]:

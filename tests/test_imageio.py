@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import io
 import os
+import struct
 import subprocess
 import sys
 import textwrap
@@ -37,10 +38,41 @@ def _photo(mode: str, depth: int, rows: int = 48, cols: int = 64) -> np.ndarray:
     return pixels
 
 
+def _bmp_with_alpha(pixels: np.ndarray) -> bytes:
+    """A 32-bit BMP whose fourth channel is alpha (a V4 header with an alpha mask).
+
+    Pillow stores a fourth BMP channel as padding, and OpenCV before 4.9 too."""
+    rows, cols, _ = pixels.shape
+    header = struct.pack(
+        "<IiiHHIIiiII4I",
+        108,
+        cols,
+        rows,
+        1,
+        32,
+        3,
+        rows * cols * 4,
+        2835,
+        2835,
+        0,
+        0,
+        0x00FF0000,
+        0x0000FF00,
+        0x000000FF,
+        0xFF000000,
+    )
+    header += struct.pack("<I", 0x73524742) + b"\0" * 48  # sRGB: no end points or gamma
+    body = np.ascontiguousarray(pixels[::-1][..., [2, 1, 0, 3]]).tobytes()
+    offset = 14 + len(header)
+    return b"BM" + struct.pack("<IHHI", offset + len(body), 0, 0, offset) + header + body
+
+
 def _write(path: Path, pixels: np.ndarray, **save: object) -> Path:
-    """Write with Pillow, or with OpenCV where Pillow cannot: 16-bit colour, and BMP with
-    alpha (Pillow stores a fourth BMP channel as padding)."""
-    if pixels.ndim == 3 and (pixels.dtype == np.uint16 or (path.suffix == ".bmp" and pixels.shape[2] == 4)):
+    """Write with Pillow, or with OpenCV where Pillow cannot: 16-bit colour; BMP with
+    alpha by hand."""
+    if path.suffix == ".bmp" and pixels.ndim == 3 and pixels.shape[2] == 4:
+        path.write_bytes(_bmp_with_alpha(pixels))
+    elif pixels.ndim == 3 and pixels.dtype == np.uint16:
         order = [2, 1, 0] if pixels.shape[2] == 3 else [2, 1, 0, 3]
         assert cv2.imwrite(str(path), np.ascontiguousarray(pixels[..., order]))
     else:
