@@ -49,6 +49,8 @@ __all__ = [
     "shannon_bits",
 ]
 
+#: Most sections along a ray (a face holds n_angles times as many values).
+_MAX_SECTIONS = 100_000
 #: Radius of the paper's reference circle, in units of the analysis map.
 REFERENCE_RADIUS = 0.5 * math.sqrt(2.0)
 
@@ -108,6 +110,18 @@ class FaceConfig:
             value = getattr(self, name)
             if not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0):
                 raise ParameterError(f"{name} must be a positive number, got {value!r}")
+        if (ray_sections := self.ray_length / self.resolution) > _MAX_SECTIONS:
+            # Checked before round(): ray_length / resolution may overflow to inf.
+            raise ParameterError(
+                f"ray_length / resolution gives {ray_sections:.3g} sections; at most {_MAX_SECTIONS}"
+            )
+        for name in ("n_angles", "cartesian_size"):
+            value = getattr(self, name)
+            if isinstance(value, bool) or (
+                not isinstance(value, (int, np.integer))
+                and not (isinstance(value, float) and value.is_integer())
+            ):
+                raise ParameterError(f"{name} must be an integer, got {value!r}")
         if isinstance(self.n_angles, bool) or int(self.n_angles) != self.n_angles or self.n_angles < 8:
             raise ParameterError(f"n_angles must be an integer >= 8, got {self.n_angles!r}")
         if int(self.cartesian_size) != self.cartesian_size or self.cartesian_size < 8:

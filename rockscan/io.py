@@ -24,6 +24,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from rockscan import __version__
+from rockscan._npzsafe import SafeNpz
 from rockscan.errors import LibraryError, ParameterError, SpecError
 from rockscan.superformula import SuperformulaParams
 
@@ -270,7 +271,7 @@ def load_library(path: str | os.PathLike[str]) -> Library:
             if not magic.startswith(b"PK"):
                 raise LibraryError(f"{path}: not a rockscan library (not an .npz archive)")
             fh.seek(0)
-            with np.load(fh, allow_pickle=False) as archive:
+            with SafeNpz(fh, str(path)) as archive:
                 missing = [k for k in ("metadata", *_ARRAYS) if k not in archive.files]
                 if missing:
                     raise LibraryError(f"{path}: not a rockscan library (missing {', '.join(missing)})")
@@ -282,14 +283,7 @@ def load_library(path: str | os.PathLike[str]) -> Library:
         raise LibraryError(f"{path}: library file is truncated or corrupt ({_first_line(exc)})") from None
     except (ValueError, OSError, AttributeError, KeyError) as exc:
         raise LibraryError(f"{path}: not a rockscan library file ({_first_line(exc)})") from None
-    if not isinstance(raw, np.ndarray) or raw.dtype != np.uint8 or raw.ndim != 1:
-        raise LibraryError(f"{path}: not a rockscan library (bad metadata record)")
-    try:
-        meta = json.loads(raw.tobytes().decode("utf-8"))
-    except (UnicodeDecodeError, json.JSONDecodeError):
-        raise LibraryError(f"{path}: library metadata is corrupt") from None
-    if not isinstance(meta, dict) or meta.get("format") != LIBRARY_FORMAT:
-        raise LibraryError(f"{path}: not a rockscan library (format is {meta.get('format')!r})")  # type: ignore[union-attr]
+    meta = _library_metadata(raw, path)
     version = meta.get("version")
     if not isinstance(version, int) or version < 1:
         raise LibraryError(f"{path}: library metadata has no valid format version")
@@ -311,7 +305,7 @@ def load_library(path: str | os.PathLike[str]) -> Library:
             if not np.all(np.isfinite(getattr(basis, name))):
                 raise LibraryError(f"library {name} holds non-finite values")
         return Library(
-            names=tuple(meta["names"]),
+            names=_library_names(meta, path),
             radii=arrays["radii"],
             params=tuple(params),
             interest=arrays["interest"],
@@ -319,8 +313,36 @@ def load_library(path: str | os.PathLike[str]) -> Library:
             face_config=face,
             basis=basis,
         )
-    except (KeyError, TypeError, ValueError) as exc:
+    except (KeyError, TypeError, ValueError, OverflowError) as exc:
         raise LibraryError(f"{path}: library file is inconsistent ({_first_line(exc)})") from None
+
+
+def _library_metadata(raw: object, path: Path) -> dict[str, object]:
+    """The metadata record of a library file, checked to be a JSON object of the format."""
+    if not isinstance(raw, np.ndarray) or raw.dtype != np.uint8 or raw.ndim != 1:
+        raise LibraryError(f"{path}: not a rockscan library (bad metadata record)")
+    try:
+        meta = json.loads(raw.tobytes().decode("utf-8"))
+    except (UnicodeDecodeError, ValueError, RecursionError):
+        raise LibraryError(f"{path}: library metadata is corrupt") from None
+    if not isinstance(meta, dict):
+        raise LibraryError(f"{path}: not a rockscan library (metadata is not a JSON object)")
+    if meta.get("format") != LIBRARY_FORMAT:
+        raise LibraryError(f"{path}: not a rockscan library (format is {meta.get('format')!r})")
+    return meta
+
+
+def _library_names(meta: dict[str, object], path: Path) -> tuple[str, ...]:
+    """Shape names of a library file, held to the rule spec names follow."""
+    from rockscan.library import NAME_PATTERN
+
+    names = meta.get("names")
+    if not isinstance(names, list):
+        raise LibraryError(f"{path}: library metadata has no list of shape names")
+    for name in names:
+        if not isinstance(name, str) or not NAME_PATTERN.match(name):
+            raise LibraryError(f"{path}: shape name {name!r} must match [a-z0-9-]+")
+    return tuple(names)
 
 
 def data_path(name: str) -> Path:
@@ -455,7 +477,9 @@ def read_image(path: str | os.PathLike[str], *, max_side: int | None = None) -> 
     OpenCV decodes 16-bit colour, at 12 bytes a pixel, so a reduced 16-bit
     colour photo is read through Pillow's 8 bits when it reaches 64 in them
     (a photo that uses its range loses nothing the reduced pixels keep), and
-    through OpenCV only when it is darker.
+    through OpenCV only when it is darker and its 16 bits fit
+    ``rockscan._imageio.MAX_DEEP_BYTES`` (512 MiB; docs/robustness.md).
+    Decoders' own messages about a broken file are kept off standard error.
     """
     from rockscan._imageio import read_image as _read
 

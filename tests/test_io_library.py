@@ -2,13 +2,17 @@
 
 from __future__ import annotations
 
+import io
 import json
 import pickle
+import re
+import tracemalloc
 import zipfile
 
 import numpy as np
 import pytest
 
+from rockscan import _npzsafe
 from rockscan.errors import LibraryError, ParameterError, SpecError
 from rockscan.information import FaceConfig
 from rockscan.io import (
@@ -199,3 +203,179 @@ def test_data_files_are_found_installed_or_not():
 
     assert data_path("default_library.toml").is_file()
     assert (data_path("examples") / "coin.png").is_file()
+
+
+# ---------------------------------------------------------------- hostile library files
+
+
+def _members(path) -> dict[str, bytes]:
+    with zipfile.ZipFile(path) as z:
+        return {name: z.read(name) for name in z.namelist()}
+
+
+def _zipped(path, members: dict[str, bytes], method: int = zipfile.ZIP_STORED) -> None:
+    with zipfile.ZipFile(path, "w", compression=method) as z:
+        for name, content in members.items():
+            z.writestr(name, content)
+
+
+def _npy(header: bytes, data: bytes = b"", version: int = 1) -> bytes:
+    """A .npy member with a given header text (padded as numpy pads it)."""
+    text = header + b" " * (-(len(header) + 11) % 64) + b"\n"
+    size = len(text).to_bytes(2 if version == 1 else 4, "little")
+    return b"\x93NUMPY" + bytes([version, 0]) + size + text + data
+
+
+def _load_quietly(path) -> tuple[LibraryError, int]:
+    """The error of loading ``path`` and the most Python memory it took (bytes)."""
+    tracemalloc.start()
+    try:
+        with pytest.raises(LibraryError) as info:
+            load_library(path)
+        return info.value, tracemalloc.get_traced_memory()[1]
+    finally:
+        tracemalloc.stop()
+
+
+def test_a_zip_bomb_is_refused_before_it_is_inflated(tmp_path, default_specs, monkeypatch):
+    """A member that inflates past the budget is refused from its declared size."""
+    monkeypatch.setattr(_npzsafe, "MAX_ARCHIVE_BYTES", 8 * 2**20)
+    members = _members(_saved(tmp_path, default_specs))
+    zeros = np.zeros((1024, 2048))  # 16 MiB of floats that deflate to 16 KiB
+    members["components.npy"] = _npy(b"{'descr': '<f8', 'fortran_order': False, 'shape': (1024, 2048), }")
+    members["components.npy"] += zeros.tobytes()
+    _zipped(tmp_path / "bomb.npz", members, zipfile.ZIP_DEFLATED)
+    assert (tmp_path / "bomb.npz").stat().st_size < 16 * 2**20 // 100
+    error, peak = _load_quietly(tmp_path / "bomb.npz")
+    assert re.search(r"array 'components' would take 16,777,\d+ bytes, past the 8,388,608", str(error))
+    assert peak < 2 * 2**20
+
+
+def test_a_header_claiming_745_gib_is_refused_without_allocating(tmp_path, default_specs):
+    members = _members(_saved(tmp_path, default_specs))
+    members["mean.npy"] = _npy(b"{'descr': '<f8', 'fortran_order': False, 'shape': (100000, 1000000), }")
+    _zipped(tmp_path / "huge.npz", members)
+    error, peak = _load_quietly(tmp_path / "huge.npz")
+    assert "its header describes 800,000,000,000 bytes of data, the archive holds 0" in str(error)
+    assert peak < 2 * 2**20
+
+
+@pytest.mark.parametrize(
+    ("member", "message"),
+    [
+        (_npy(b"{'descr': '<f8', 'fortran_order': False, 'shape': (3,"), "header is not readable"),
+        (
+            _npy(b"{'descr': '<f8', 'fortran_order': False, 'shape': (3,), }\x00\xff"),
+            "header is not readable",
+        ),
+        (_npy(b"{'descr': '|O', 'fortran_order': False, 'shape': (1,), }", b"\0" * 8), "not a plain number"),
+        (_npy(b"{'descr': [('a', '<f8')], 'fortran_order': False, 'shape': (1,), }"), "not numpy's"),
+        (_npy(b"{'descr': '<q9', 'fortran_order': False, 'shape': (1,), }"), "not readable"),
+        (_npy(b"{'descr': '<f8', 'fortran_order': False, 'shape': (-1,), }"), "is not a shape"),
+        (_npy(b"{'descr': '<f8', 'fortran_order': False, 'shape': (True,), }"), "is not a shape"),
+        (_npy(b"{'descr': '<f8', 'fortran_order': 0, 'shape': (1,), }"), "not numpy's"),
+        (_npy(b"{'descr': '<f8', 'shape': (1,), }"), "not numpy's"),
+        (_npy(b"[1, 2]"), "not numpy's"),
+        (_npy(b"{'descr': '<f8', 'fortran_order': False, 'shape': (1,), }", version=7), "version 7"),
+        (b"\x93NUMPY\x01\x00\xff\xff" + b" " * 70000, "too long"),
+        (b"\x93NUMPY\x01", "not a .npy array"),
+        (b"plain bytes", "not a .npy array"),
+    ],
+)
+def test_every_header_fault_is_one_library_error(tmp_path, default_specs, member, message):
+    members = _members(_saved(tmp_path, default_specs))
+    members["weights.npy"] = member
+    _zipped(tmp_path / "bad.npz", members)
+    error, _ = _load_quietly(tmp_path / "bad.npz")
+    assert re.search(f"array 'weights': .*{message}", str(error)), str(error)
+    assert "\n" not in str(error) and "pickle" not in str(error)
+
+
+def _patched(data: bytes, at: int, value: bytes) -> bytes:
+    return data[:at] + value + data[at + len(value) :]
+
+
+def test_every_zip_fault_is_one_library_error(tmp_path, default_specs):
+    good = _saved(tmp_path, default_specs)
+    data = good.read_bytes()
+    directory = data.rindex(b"PK\x01\x02")  # the last member's central directory entry
+    local = data.index(b"PK\x03\x04")
+    bzip = tmp_path / "bzip2.npz"
+    _zipped(bzip, _members(good), zipfile.ZIP_BZIP2)
+    rng = np.random.default_rng(3)
+    cases = {
+        # Flag bit 0 (encrypted) in the central directory and the local header.
+        "encrypted.npz": (_patched(_patched(data, directory + 8, b"\x01"), local + 6, b"\x01"), "encrypted"),
+        "bzip2.npz": (bzip.read_bytes(), "unsupported method"),
+        "patched.npz": (_patched(_patched(data, directory + 8, b"\x20"), local + 6, b"\x20"), "corrupt"),
+        "pk-noise.npz": (b"PK" + rng.bytes(4000), "truncated or corrupt"),
+        "zip64.npz": (_patched(data, data.rindex(b"PK\x05\x06") + 8, b"\xff\xff\xff\xff"), "zip64"),
+        "many.npz": (_many_members(), "an archive of 300 members"),
+    }
+    for name, (content, message) in cases.items():
+        path = tmp_path / name
+        path.write_bytes(content)
+        error, _ = _load_quietly(path)
+        assert re.search(message, str(error)), (name, str(error))
+        assert "\n" not in str(error) and "pickle" not in str(error)
+
+
+def _many_members() -> bytes:
+    buffer = io.BytesIO()
+    with zipfile.ZipFile(buffer, "w") as z:
+        for i in range(300):
+            z.writestr(f"m{i}.npy", b"")
+    return buffer.getvalue()
+
+
+def _with_metadata(tmp_path, default_specs, name, text: bytes):
+    members = _members(_saved(tmp_path, default_specs))
+    size = len(text)
+    members["metadata.npy"] = _npy(
+        f"{{'descr': '|u1', 'fortran_order': False, 'shape': ({size},), }}".encode(), text
+    )
+    _zipped(tmp_path / name, members)
+    return tmp_path / name
+
+
+def _good_metadata(tmp_path, default_specs) -> dict:
+    with np.load(_saved(tmp_path, default_specs)) as z:
+        return json.loads(z["metadata"].tobytes())
+
+
+@pytest.mark.parametrize(
+    ("edit", "message"),
+    [
+        (lambda meta: [meta], "metadata is not a JSON object"),
+        (lambda meta: {**meta, "names": [1, 2, 3, 4]}, "shape name 1 must match"),
+        (lambda meta: {**meta, "names": ["Circle", "b", "c", "d"]}, "shape name 'Circle' must match"),
+        (lambda meta: {**meta, "names": "abcd"}, "no list of shape names"),
+        (lambda meta: {**meta, "face": [1, 2]}, "inconsistent"),
+        (lambda meta: {**meta, "params": [[1, 2]] * 4}, "inconsistent"),
+        (
+            lambda meta: {**meta, "face": {**meta["face"], "ray_length": 1e300, "resolution": 1e-300}},
+            "sections",
+        ),
+        (
+            lambda meta: {**meta, "face": {**meta["face"], "n_angles": float("inf")}},
+            "n_angles must be an integer",
+        ),
+    ],
+)
+def test_metadata_is_validated(tmp_path, default_specs, edit, message):
+    text = json.dumps(edit(_good_metadata(tmp_path, default_specs))).encode()
+    error, _ = _load_quietly(_with_metadata(tmp_path, default_specs, "meta.npz", text))
+    assert re.search(message, str(error)), str(error)
+
+
+@pytest.mark.parametrize("text", [b"[" * 100_000 + b"]" * 100_000, b'{"format": ' + b"9" * 5000 + b"}"])
+def test_metadata_that_json_cannot_take_is_corrupt(tmp_path, default_specs, text):
+    error, _ = _load_quietly(_with_metadata(tmp_path, default_specs, "meta.npz", text))
+    assert "library metadata is corrupt" in str(error)
+
+
+def test_an_archive_saved_compressed_still_loads(tmp_path, default_specs):
+    good = _saved(tmp_path, default_specs)
+    _zipped(tmp_path / "deflated.npz", _members(good), zipfile.ZIP_DEFLATED)
+    again = load_library(tmp_path / "deflated.npz")
+    np.testing.assert_array_equal(again.basis.components, load_library(good).basis.components)
