@@ -733,6 +733,9 @@ def parse_vary(text: str) -> tuple[str, tuple[float, ...]]:
         raise ParameterError(f"{text!r} is not {_VARY_SYNTAX}")
     if len(parts) == 3 and not (parts[2].strip().isdigit() and int(parts[2]) >= 1):
         raise ParameterError(f"{text!r}: COUNT must be a whole number >= 1")
+    if len(parts) == 3 and int(parts[2]) > MAX_VARIANTS + 1:
+        # Checked before the values are made: a family never holds more.
+        raise ParameterError(f"{text!r}: COUNT must be at most {MAX_VARIANTS + 1} (a family's most)")
     try:
         if len(parts) == 3:
             grid = np.linspace(float(parts[0]), float(parts[1]), int(parts[2]))

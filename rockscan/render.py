@@ -26,6 +26,10 @@ from rockscan.superformula import SuperformulaParams
 __all__ = ["RenderConfig", "RenderedPhoto", "random_superformula", "render_photo", "render_scene"]
 
 
+#: Most pixels of a rendered photo (about 1 GB of memory while drawing).
+MAX_RENDER_PIXELS = 16_000_000
+
+
 @dataclass(frozen=True)
 class RenderConfig:
     """How a synthetic rock photo looks.
@@ -96,6 +100,12 @@ class RenderConfig:
                 raise ParameterError(f"{name} must be an integer, got {value!r}")
         if self.rows < 16 or self.cols < 16:
             raise ParameterError("rows and cols must be at least 16")
+        if self.rows * self.cols > MAX_RENDER_PIXELS:
+            # Drawing takes some 60 bytes a pixel: refuse before allocating any.
+            raise ParameterError(
+                f"a photo of {self.rows} x {self.cols} pixels is over the {MAX_RENDER_PIXELS:,} "
+                "rockscan draws (e.g. 4000 x 4000)"
+            )
         if self.pebbles < 0:
             raise ParameterError("pebbles must be 0 or more")
         for name in (

@@ -130,7 +130,8 @@ def superformula(
     theta = np.asarray(theta, dtype=np.float64)
     if not np.all(np.isfinite(theta)):
         raise ParameterError("theta must be finite")
-    with np.errstate(divide="ignore", invalid="ignore"):
+    # Huge exponents overflow to inf, which callers refuse as an unbounded curve.
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
         log_cos = np.log(np.abs(np.cos(params.m1 * theta / 4.0))) - math.log(params.a)
         log_sin = np.log(np.abs(np.sin(params.m2 * theta / 4.0))) - math.log(params.b)
         term_cos = np.zeros_like(theta) if params.n2 == 0 else params.n2 * log_cos

@@ -19,6 +19,9 @@ import click
 
 from rockscan._choices import METHODS, METRICS, RANK_METRICS
 
+#: Exit status when the reader of standard output goes away (``| head``).
+BROKEN_PIPE_STATUS = 141
+
 
 def _fail(message: str, status: int = 1) -> None:
     click.echo(f"rockscan: error: {message}", err=True)
@@ -37,10 +40,12 @@ def _errors(func: Callable[..., Any]) -> Callable[..., Any]:
         except RockscanError as exc:
             _fail(str(exc))
         except BrokenPipeError:
-            # The reader went away (| head): stop quietly, as Unix tools do.
+            # The reader went away (| head): stop quietly with the status of a tool
+            # that SIGPIPE ended (128 + 13), as `cat` and `grep` give, not the
+            # status 1 of a failed photo (docs/robustness.md).
             devnull = os.open(os.devnull, os.O_WRONLY)
             os.dup2(devnull, sys.stdout.fileno())
-            sys.exit(1)
+            sys.exit(BROKEN_PIPE_STATUS)
         except KeyboardInterrupt:
             _fail("interrupted", 130)
 
