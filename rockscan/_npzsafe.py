@@ -7,8 +7,9 @@ advises loading "unsafely using allow_pickle" when it cannot tell a file's kind.
 This reader checks everything it can before it inflates or allocates anything:
 
 * the central directory is small (a library has a few members) and not zip64;
-* a member is stored or deflated, not encrypted, and its declared size fits the
-  budget, counted over the whole archive;
+* a member is stored or deflated, not encrypted, inflates at most 50 times
+  (above 1 MiB), and its declared size fits the budget, counted over the whole
+  archive;
 * the ``.npy`` header is short, of format version 1 to 3, names a plain numeric
   dtype (bool, integers, floats; no objects, no records) and a shape whose bytes
   are exactly what the member holds after the header.
@@ -34,8 +35,13 @@ from rockscan.errors import LibraryError
 __all__ = ["MAX_ARCHIVE_BYTES", "SafeNpz"]
 
 #: Most bytes the arrays of one archive may take once read (a library of 1,000
-#: information-face shapes takes about 160 MB).
-MAX_ARCHIVE_BYTES = 512 * 2**20
+#: information-face shapes, the most a family makes, takes about 155 MB).
+MAX_ARCHIVE_BYTES = 256 * 2**20
+#: Most a member above ``_RATIO_FLOOR`` bytes may inflate, as a multiple of its
+#: deflated size: rockscan stores members uncompressed, and floats of real shapes
+#: deflate by a few times, while a run of zeros deflates a thousandfold.
+_MAX_RATIO = 50
+_RATIO_FLOOR = 2**20
 #: Most members an archive may list (a library has eight or so).
 _MAX_MEMBERS = 256
 #: Longest central directory read (bytes).
@@ -123,6 +129,11 @@ class SafeNpz:
             raise self._error(f"{where} is encrypted")
         if info.compress_type not in (zipfile.ZIP_STORED, zipfile.ZIP_DEFLATED):
             raise self._error(f"{where} is compressed by an unsupported method ({info.compress_type})")
+        if info.file_size > max(_RATIO_FLOOR, _MAX_RATIO * info.compress_size):
+            raise self._error(
+                f"{where} would inflate {info.file_size / max(info.compress_size, 1):,.0f} times "
+                "(a zip bomb, not a library)"
+            )
         if self._used + info.file_size > self.max_bytes:
             raise self._error(
                 f"{where} would take {info.file_size:,} bytes, past the {self.max_bytes:,} a library may hold"

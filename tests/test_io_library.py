@@ -8,6 +8,7 @@ import pickle
 import re
 import tracemalloc
 import zipfile
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -237,17 +238,33 @@ def _load_quietly(path) -> tuple[LibraryError, int]:
         tracemalloc.stop()
 
 
-def test_a_zip_bomb_is_refused_before_it_is_inflated(tmp_path, default_specs, monkeypatch):
-    """A member that inflates past the budget is refused from its declared size."""
-    monkeypatch.setattr(_npzsafe, "MAX_ARCHIVE_BYTES", 8 * 2**20)
+def _with_components(tmp_path, default_specs, values: np.ndarray, method: int) -> Path:
     members = _members(_saved(tmp_path, default_specs))
-    zeros = np.zeros((1024, 2048))  # 16 MiB of floats that deflate to 16 KiB
-    members["components.npy"] = _npy(b"{'descr': '<f8', 'fortran_order': False, 'shape': (1024, 2048), }")
-    members["components.npy"] += zeros.tobytes()
-    _zipped(tmp_path / "bomb.npz", members, zipfile.ZIP_DEFLATED)
-    assert (tmp_path / "bomb.npz").stat().st_size < 16 * 2**20 // 100
-    error, peak = _load_quietly(tmp_path / "bomb.npz")
-    assert re.search(r"array 'components' would take 16,777,\d+ bytes, past the 8,388,608", str(error))
+    header = f"{{'descr': '<f8', 'fortran_order': False, 'shape': {values.shape}, }}".encode()
+    members["components.npy"] = _npy(header) + values.tobytes()
+    _zipped(tmp_path / "big.npz", members, method)
+    return tmp_path / "big.npz"
+
+
+def test_a_zip_bomb_is_refused_before_it_is_inflated(tmp_path, default_specs):
+    """16 MiB of zeros deflate a thousandfold: refused from the sizes the archive declares."""
+    path = _with_components(tmp_path, default_specs, np.zeros((1024, 2048)), zipfile.ZIP_DEFLATED)
+    assert path.stat().st_size < 16 * 2**20 // 100
+    error, peak = _load_quietly(path)
+    assert re.search(r"array 'components' would inflate [\d,]+ times \(a zip bomb", str(error)), str(error)
+    assert peak < 2 * 2**20
+
+
+@pytest.mark.parametrize("method", [zipfile.ZIP_STORED, zipfile.ZIP_DEFLATED])
+def test_arrays_past_the_budget_are_refused_before_they_are_read(
+    tmp_path, default_specs, monkeypatch, method
+):
+    monkeypatch.setattr(_npzsafe, "MAX_ARCHIVE_BYTES", 8 * 2**20)
+    noise = np.random.default_rng(0).random((1024, 1100))  # 8.6 MiB that do not deflate
+    error, peak = _load_quietly(_with_components(tmp_path, default_specs, noise, method))
+    assert re.search(r"array 'components' would take 9,011,\d+ bytes, past the 8,388,608", str(error)), str(
+        error
+    )
     assert peak < 2 * 2**20
 
 
