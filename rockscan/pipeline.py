@@ -6,8 +6,10 @@ prints: the command line formats what they return.
 
 from __future__ import annotations
 
+import logging
 import math
 import os
+import time
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING
 
@@ -23,6 +25,8 @@ from rockscan.segment import Segmentation, SegmentConfig, segment
 if TYPE_CHECKING:
     from rockscan.information import FaceConfig
     from rockscan.library import Library, ShapeSpec
+
+_log = logging.getLogger(__name__)
 
 __all__ = [
     "ClassifyConfig",
@@ -298,11 +302,19 @@ def classify_path(
     from rockscan.io import read_image
 
     config = config or ClassifyConfig()
+    start = time.perf_counter()
     try:
         image = read_image(path, max_side=2 * config.segment.work_size)
         rocks = classify_image(image.pixels, library, config, all_rocks=all_rocks, scale=image.scale)
     except RockscanError as exc:
         return PhotoResult(path=str(path), error=str(exc))
+    _log.debug(
+        "%s: %d rock(s) in %.2f s (decoded at 1/%g size)",
+        path,
+        len(rocks),
+        time.perf_counter() - start,
+        image.scale,
+    )
     return PhotoResult(path=str(path), rocks=tuple(rocks))
 
 
