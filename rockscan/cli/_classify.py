@@ -156,7 +156,7 @@ def classify(
             log.error("%s", result.error if result.error.startswith(photo) else f"{photo}: {result.error}")
         if plot_path and result.ok:
             try:
-                _plot(photo, result.rocks, lib, targets[i], config.segment.work_size)
+                _plot(photo, result.rocks, lib, targets[i], config)
             except RockscanError as exc:
                 log.error("%s", exc)
                 failed += 1
@@ -186,14 +186,20 @@ def _expand_stdin(photos: tuple[str, ...]) -> tuple[str, ...]:
     return (*photos[:at], *read, *photos[at + 1 :])
 
 
-def _plot(photo: str, rocks: Any, lib: Any, target: str, work_size: int) -> None:
+def _plot(photo: str, rocks: Any, lib: Any, target: str, config: Any) -> None:
     from rockscan.io import read_image
     from rockscan.plot import plot_classification
 
     # The plot needs no more detail than the segmentation saw: read reduced.
-    image = read_image(photo, max_side=2 * work_size)
+    image = read_image(photo, max_side=2 * config.segment.work_size)
     plot_classification(
-        image.pixels, list(rocks), lib, target, title=os.path.basename(photo), scale=image.scale
+        image.pixels,
+        list(rocks),
+        lib,
+        target,
+        title=os.path.basename(photo),
+        scale=image.scale,
+        match_config=config.match,
     )
 
 
