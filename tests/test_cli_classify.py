@@ -375,6 +375,16 @@ def test_plot_writes_one_file_per_photo(rendered, tmp_path):
     assert result.exit_code == 1
     written = sorted(p.name for p in tmp_path.glob("many-*.png"))
     assert written == ["many-teardrop-0.png", "many-teardrop-1.png"]
+    # Another run into the same names: refused, or with --overwrite replaced, and
+    # plots of the earlier run that this one does not replace are named.
+    paths = [rendered["teardrop"][0], rendered["six-pointed-star"][0]]
+    refused = run("--plot", str(tmp_path / "many.png"), *[str(twin), *paths])
+    assert refused.exit_code == 2 and "many-teardrop-0.png and 1 more exists" in refused.stderr
+    result = run("--plot", str(tmp_path / "many.png"), *paths)
+    assert result.exit_code == 0
+    assert (
+        "rockscan: warning: 2 other plots named" in result.stderr and "many-teardrop-0.png" in result.stderr
+    )
 
 
 def test_plot_says_what_it_wrote_and_refuses_to_replace_without_overwrite(rendered, tmp_path):

@@ -70,7 +70,7 @@ def test_the_python_example_runs(monkeypatch, capsys):
     assert printed.splitlines()[-1] == "six-pointed-star"
 
 
-@pytest.mark.parametrize("name", ["accuracy", "core-benchmark", "fit", "paper", "speed", "triage"])
+@pytest.mark.parametrize("name", ["accuracy", "cli", "core-benchmark", "fit", "paper", "speed", "triage"])
 def test_linked_sections_and_figures_exist(name):
     section = ROOT / "docs" / f"{name}.md"
     assert section.is_file()

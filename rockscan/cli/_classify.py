@@ -230,6 +230,20 @@ def _plot_targets(plot_path: str, photos: tuple[str, ...], *, overwrite: bool) -
         )
     if existing:
         log.info("replacing %d earlier plot%s", len(existing), "s" if len(existing) > 1 else "")
+    if len(photos) > 1:
+        import glob
+
+        root, ext = os.path.splitext(plot_path)
+        pattern = f"{glob.escape(root)}-*{ext or '.png'}"
+        others = sorted(set(glob.glob(pattern)) - set(targets.values()))
+        if others:
+            log.warning(
+                "%d other plot%s named %s (of an earlier run?) stay beside these, e.g. %s",
+                len(others),
+                "s" if len(others) > 1 else "",
+                pattern,
+                others[0],
+            )
     return targets
 
 
