@@ -9,12 +9,13 @@ no global state behind (no backend switch, no open figures).
 from __future__ import annotations
 
 import os
+from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from rockscan.errors import ParameterError
-from rockscan.information import information_face_cartesian
+from rockscan.information import information_face
 from rockscan.polar import radii_to_xy, rotate_radii, rowcol_from_xy
 
 if TYPE_CHECKING:
@@ -22,13 +23,127 @@ if TYPE_CHECKING:
     from numpy.typing import NDArray
 
     from rockscan.library import Library
+    from rockscan.match import Match, MatchConfig
     from rockscan.pipeline import RockResult
 
-__all__ = ["classification_figure", "library_outline_rowcol", "plot_classification", "plot_library"]
+__all__ = [
+    "DecisionTest",
+    "classification_figure",
+    "decision_tests",
+    "library_outline_rowcol",
+    "match_cutoffs",
+    "plot_classification",
+    "plot_library",
+]
 
 _OUTLINE = "#ff3b30"
 _SHAPE = "#30d158"
 _CENTROID = "#ffd60a"
+_PASS = "#1e8e3e"
+_FAIL = "#d93025"
+_CUTOFF = "#d93025"
+
+
+@dataclass(frozen=True)
+class DecisionTest:
+    """One of the tests a sample must pass to be interesting.
+
+    Attributes
+    ----------
+    name : str
+        What is tested, for people: ``"distance"``, ``"MScore"``, ``"DFFS"``,
+        ``"segmentation"``.
+    value : float
+    cutoff : float
+    passed : bool
+    relation : str
+        How value and cutoff must compare to pass: ``"<="`` or ``">"``.
+    """
+
+    name: str
+    value: float
+    cutoff: float
+    passed: bool
+    relation: str
+
+    def describe(self) -> str:
+        """E.g. ``'distance 0.00217 ≤ 0.192'``, or the comparison that fails."""
+        shown = {"<=": "≤", ">": ">", ">=": "≥"}
+        failing = {"<=": ">", ">": "≤", ">=": "<"}
+        relation = shown[self.relation] if self.passed else failing[self.relation]
+        return f"{self.name} {self.value:.3g} {relation} {self.cutoff:.3g}"
+
+
+def match_cutoffs(match: Match, library: Library, config: MatchConfig | None = None) -> dict[str, float]:
+    """The cutoffs a match was judged by, by test name.
+
+    Cutoffs the match carries (``match.cutoff_distance``, ``cutoff_mscore``,
+    ``cutoff_residual``, ``cutoff_segmentation``) win; otherwise those of
+    ``config`` (default :class:`rockscan.match.MatchConfig`) for the library's
+    face kind. The one place the plots read cutoffs from.
+
+    Parameters
+    ----------
+    match : Match
+    library : Library
+    config : MatchConfig, optional
+
+    Returns
+    -------
+    cutoffs : dict of str to float
+        ``"distance"``, ``"MScore"`` and ``"DFFS"``, and ``"segmentation"`` when
+        the match carries a segmentation cutoff.
+    """
+    from rockscan.match import MatchConfig
+
+    theta, gamma, rho = (config or MatchConfig()).cutoffs(library.face_config.kind)
+    cutoffs = {"distance": theta, "MScore": gamma, "DFFS": rho}
+    for name, attribute in (
+        ("distance", "cutoff_distance"),
+        ("MScore", "cutoff_mscore"),
+        ("DFFS", "cutoff_residual"),
+        ("segmentation", "cutoff_segmentation"),
+    ):
+        value = getattr(match, attribute, None)
+        if value is not None:
+            cutoffs[name] = float(value)
+    return cutoffs
+
+
+def decision_tests(
+    rock: RockResult, library: Library, config: MatchConfig | None = None
+) -> list[DecisionTest]:
+    """The tests that decide whether a rock is interesting, each with its value and cutoff.
+
+    Parameters
+    ----------
+    rock : RockResult
+    library : Library
+    config : MatchConfig, optional
+        The settings the rock was matched with (for the cutoffs, see
+        :func:`match_cutoffs`).
+
+    Returns
+    -------
+    list of DecisionTest
+        Distance to the nearest shape (the paper's theta), MScore (gamma), the
+        distance from face space (DFFS) and, where a cutoff exists, the
+        segmentation score. ``rock.match.interesting`` stays the verdict: these
+        say why.
+    """
+    m = rock.match
+    cutoffs = match_cutoffs(m, library, config)
+    w = float(m.distances[m.names.index(m.nearest)])
+    tests = [
+        DecisionTest("distance", w, cutoffs["distance"], w <= cutoffs["distance"], "<="),
+        DecisionTest("MScore", m.mscore, cutoffs["MScore"], m.mscore > cutoffs["MScore"], ">"),
+        DecisionTest("DFFS", m.residual, cutoffs["DFFS"], m.residual <= cutoffs["DFFS"], "<="),
+    ]
+    score = rock.to_dict().get("segmentation_score")
+    if "segmentation" in cutoffs and score is not None:
+        cut = cutoffs["segmentation"]
+        tests.append(DecisionTest("segmentation", float(score), cut, float(score) >= cut, ">="))
+    return tests
 
 
 def library_outline_rowcol(library: Library, rock: RockResult) -> NDArray[np.float64]:
@@ -60,12 +175,13 @@ def plot_classification(
     *,
     title: str | None = None,
     scale: float = 1.0,
+    match_config: MatchConfig | None = None,
 ) -> None:
     """Draw a classified photo to a file; see :func:`classification_figure`.
 
     Parameters
     ----------
-    pixels, rocks, library, title, scale
+    pixels, rocks, library, title, scale, match_config
         As for :func:`classification_figure`.
     path : path-like
         Image file to write; its suffix picks the format (PNG, PDF, SVG, JPEG).
@@ -75,7 +191,10 @@ def plot_classification(
     ParameterError
         If the file cannot be written or its suffix names no image format.
     """
-    _save(classification_figure(pixels, rocks, library, title=title, scale=scale), path)
+    figure = classification_figure(
+        pixels, rocks, library, title=title, scale=scale, match_config=match_config
+    )
+    _save(figure, path)
 
 
 def classification_figure(
@@ -85,16 +204,21 @@ def classification_figure(
     *,
     title: str | None = None,
     scale: float = 1.0,
+    match_config: MatchConfig | None = None,
 ) -> Figure:
-    """A classified photo: outlines, centroids, matched shapes, faces, distances.
+    """A classified photo: verdict, outlines, centroids, matched shapes, faces, distances.
 
-    Panels, in the order of ``figure.axes``: the whole photo with every rock's
-    outline, centroid and verdict; a close view of the main rock with the
-    matched library shape drawn over it at the found angle and scale; the
-    information face of the main rock; the matched shape's face turned by that
-    angle, on the same colour scale; the colour bar; and the distance to every
-    library shape at its best rotation (the paper's outWeights). A library of
-    plain radii faces shows the two radii curves instead of the faces.
+    Above the panels, the main rock's verdict (interesting or not) and the
+    tests that decided it (:func:`decision_tests`: distance cutoff, MScore,
+    distance from face space, segmentation where it has a cutoff), the failed
+    ones first. Panels, in the order of ``figure.axes``: the whole photo with
+    every rock's outline, centroid and verdict; a close view of the main rock
+    with the matched library shape drawn over it at the found angle and scale;
+    the information face of the main rock on its (theta, r) grid; the matched
+    shape's face turned by that angle, on the same colour scale; the colour
+    bar; and the distance to every library shape at its best rotation (the
+    paper's outWeights) with the distance cutoff. A library of plain radii
+    faces shows the two radii curves instead of the faces.
 
     Parameters
     ----------
@@ -109,6 +233,9 @@ def classification_figure(
         Full-resolution pixels per pixel of ``pixels`` (the ``scale`` of
         :func:`rockscan.io.read_image`), so that outlines land right on a photo
         read reduced.
+    match_config : MatchConfig, optional
+        The settings the rocks were matched with, for the cutoffs shown
+        (default: the defaults).
 
     Returns
     -------
@@ -120,13 +247,13 @@ def classification_figure(
         raise ParameterError(f"scale must be a positive number, got {scale!r}")
     shown = _displayable(pixels)
     # A fixed layout: a layout engine would cost as much as drawing the figure.
-    fig = Figure(figsize=(12, 9))
-    ax_photo = fig.add_axes((0.01, 0.44, 0.48, 0.51))
-    ax_zoom = fig.add_axes((0.51, 0.44, 0.48, 0.51))
-    ax_face = fig.add_axes((0.04, 0.13, 0.2, 0.267))
-    ax_lib = fig.add_axes((0.285, 0.13, 0.2, 0.267))
-    ax_bar = fig.add_axes((0.09, 0.05, 0.35, 0.018))
-    ax_dist = fig.add_axes((0.665, 0.06, 0.32, 0.34))
+    fig = Figure(figsize=(12, 9.6))
+    ax_photo = fig.add_axes((0.01, 0.44, 0.48, 0.44))
+    ax_zoom = fig.add_axes((0.51, 0.44, 0.48, 0.44))
+    ax_face = fig.add_axes((0.07, 0.285, 0.39, 0.105))
+    ax_lib = fig.add_axes((0.07, 0.075, 0.39, 0.105))
+    ax_bar = fig.add_axes((0.475, 0.075, 0.008, 0.315))
+    ax_dist = fig.add_axes((0.665, 0.06, 0.32, 0.32))
     rows, cols = shown.shape[:2]
     # Reduced pixel i covers photo pixels [i*scale, (i+1)*scale): centres at integers.
     extent = (-0.5, cols * scale - 0.5, rows * scale - 0.5, -0.5)
@@ -145,6 +272,7 @@ def classification_figure(
         for ax in (ax_zoom, ax_face, ax_lib, ax_bar, ax_dist):
             ax.axis("off")
         ax_zoom.text(0.5, 0.5, "no rock found", ha="center", va="center", transform=ax_zoom.transAxes)
+        fig.text(0.5, 0.955, "no rock found", ha="center", va="center", fontsize=14, weight="bold")
         return fig
     main = rocks[0]
     _draw_rock(ax_zoom, main, library, label=True, shape=True, annotate=False)
@@ -152,15 +280,39 @@ def classification_figure(
     m = main.match
     verdict = m.match if m.match else f"no match (nearest {m.nearest})"
     modulo = f" (mod {360 / m.symmetry:g}°)" if m.symmetry > 1 else ""
+    score = main.to_dict().get("segmentation_score")
+    segmentation = f", segmentation {score:.2f}" if score is not None else ""
     ax_zoom.set_title(
         f"rock {main.index}: {verdict}\nMScore {m.mscore:.3f}, distance {m.distance:.3g}, "
-        f"angle {m.angle_deg:.1f}°{modulo}",
+        f"angle {m.angle_deg:.1f}°{modulo}{segmentation}",
         fontsize=10,
     )
     ax_zoom.legend(loc="lower right", fontsize=7, framealpha=0.75)
+    tests = decision_tests(main, library, match_config)
+    _draw_verdict(fig, main, tests)
     _draw_faces(fig, ax_face, ax_lib, ax_bar, main, library)
-    _draw_distances(ax_dist, main)
+    _draw_distances(ax_dist, main, next(t for t in tests if t.name == "distance"))
     return fig
+
+
+def _draw_verdict(fig: Any, rock: RockResult, tests: list[DecisionTest]) -> None:
+    """The verdict in words and colour across the top, and the tests behind it."""
+    m = rock.match
+    failed = [t for t in tests if not t.passed]
+    if m.interesting:
+        headline, color = f"INTERESTING: {m.match}", _PASS
+        why = "passes every test: " + ", ".join(t.describe() for t in tests)
+    else:
+        headline, color = f"NOT INTERESTING: nearest shape '{m.nearest}' rejected", _FAIL
+        if failed:
+            why = "decided by " + ", ".join(t.describe() for t in failed)
+            passed = [t for t in tests if t.passed]
+            if passed:
+                why += "   (passed: " + ", ".join(t.describe() for t in passed) + ")"
+        else:
+            why = "rejected by the matcher (" + ", ".join(t.describe() for t in tests) + ")"
+    fig.text(0.5, 0.965, headline, ha="center", va="center", fontsize=15, weight="bold", color=color)
+    fig.text(0.5, 0.932, why, ha="center", va="center", fontsize=9.5, color="#1c1c1e")
 
 
 def _save(fig: Figure, path: str | os.PathLike[str]) -> None:
@@ -261,36 +413,66 @@ def _draw_faces(fig: Any, ax_face: Any, ax_lib: Any, ax_bar: Any, rock: RockResu
         ax_face.set_ylabel("radius / mean", fontsize=8)
         ax_face.legend(fontsize=7)
         ax_face.set_title("radii (the face)", fontsize=9)
-        ax_face.set_position((0.06, 0.08, 0.42, 0.32))
+        ax_face.set_position((0.07, 0.085, 0.40, 0.30))
         ax_lib.axis("off")
         ax_bar.axis("off")
         return
-    cartesian = config.with_(grid="cartesian", cartesian_size=160)
-    faces = [information_face_cartesian(rock.radii, cartesian), information_face_cartesian(turned, cartesian)]
+    if config.grid == "cartesian":
+        # The paper's grid map: the face is an image of the plane around the centroid.
+        faces = [information_face(rock.radii, config), information_face(turned, config)]
+        span = config.ray_length
+        extent = (-span, span, -span, span)
+        axis_labels = ("x (map units)", "y (map units)")
+    else:
+        # The face as the matcher sees it: rays along theta, sections along r.
+        faces = [information_face(rock.radii, config).T, information_face(turned, config).T]
+        extent = (0.0, 360.0, 0.0, float(config.n_sections))
+        axis_labels = (
+            "theta (degrees, counter-clockwise from +x)",
+            f"r (sections of {config.resolution:g})",
+        )
     top = max(float(f.max()) for f in faces)
-    span = config.ray_length
-    titles = ["information face of the rock", f"'{rock.match.nearest}' at {rock.match.angle_deg:.1f}°"]
+    titles = ["information face of the rock", f"'{rock.match.nearest}' turned by {rock.match.angle_deg:.1f}°"]
     for ax, face, text in zip((ax_face, ax_lib), faces, titles, strict=True):
-        image = ax.imshow(face, cmap="magma", vmin=0.0, vmax=top, extent=(-span, span, -span, span))
+        image = ax.imshow(
+            face,
+            cmap="magma",
+            vmin=0.0,
+            vmax=top,
+            extent=extent,
+            origin="lower",
+            aspect="auto",
+            interpolation="nearest",
+        )
         ax.set_title(text, fontsize=9)
+        ax.set_xlabel(axis_labels[0], fontsize=8)
+        ax.set_ylabel(axis_labels[1], fontsize=8)
         ax.tick_params(labelsize=7)
-    fig.colorbar(image, cax=ax_bar, orientation="horizontal", label="H·q (bits)")
+        if config.grid != "cartesian":
+            ax.set_xticks(np.arange(0, 361, 45))
+    fig.colorbar(image, cax=ax_bar, orientation="vertical", label="H·q (bits)")
+    ax_bar.tick_params(labelsize=7)
 
 
-def _draw_distances(ax: Any, rock: RockResult) -> None:
+def _draw_distances(ax: Any, rock: RockResult, test: DecisionTest) -> None:
     m = rock.match
     order = np.argsort(m.distances)[::-1]
     names = [m.names[i] for i in order]
     values = m.distances[order]
-    colors = [_SHAPE if name == m.nearest else "#8e8e93" for name in names]
+    colors = [(_SHAPE if test.passed else _FAIL) if name == m.nearest else "#8e8e93" for name in names]
     bars = ax.barh(np.arange(len(names)), values, color=colors)
     best = names.index(m.nearest)
     ax.bar_label(bars, labels=[f"{v:.3g}" if i == best else "" for i, v in enumerate(values)], fontsize=7)
     ax.set_yticks(np.arange(len(names)), names, fontsize=7)
-    ax.axvline(float(np.mean(m.distances)), color="#1c1c1e", lw=0.8, ls=":", label="mean (MScore's base)")
+    ax.axvline(
+        test.cutoff, color=_CUTOFF, lw=1.4, ls="--", label=f"cutoff {test.cutoff:.3g}:\nmatch at or below"
+    )
+    ax.axvline(float(np.mean(m.distances)), color="#1c1c1e", lw=0.8, ls=":", label="mean\n(MScore's base)")
+    # Room on the right for the legend, clear of the bars.
+    ax.set_xlim(0.0, 1.4 * max(float(values.max()), test.cutoff))
     ax.set_xlabel("distance at best rotation (outWeight)", fontsize=8)
     ax.tick_params(axis="x", labelsize=7)
-    ax.legend(fontsize=7, loc="lower right")
+    ax.legend(fontsize=7, loc="center right", framealpha=0.9)
     ax.set_title("distance to every library shape", fontsize=9)
 
 

@@ -8,6 +8,8 @@ from __future__ import annotations
 
 import json
 import os
+import subprocess
+import sys
 from pathlib import Path
 
 import cv2
@@ -45,8 +47,8 @@ KEYS = {
 }
 
 
-def run(*args: str):
-    return CliRunner().invoke(main, ["classify", *args])
+def run(*args: str, **kwargs):
+    return CliRunner().invoke(main, ["classify", *args], **kwargs)
 
 
 def lines(output: str) -> list[dict]:
@@ -105,22 +107,136 @@ def test_json_values_are_the_truth_of_rendered_photos(rendered):
 
 def test_table_is_the_default(rendered, tmp_path):
     paths = [rendered["rounded-square"][0], str(tmp_path)]
-    result = run(*paths)
+    result = run(*paths, env={"COLUMNS": "120"})
     assert result.exit_code == 1
     header, good, bad = result.stdout.splitlines()
     assert header.split()[:4] == ["photo", "rock", "match", "nearest"]
     assert good.split()[1:4] == ["0", "rounded-square", "rounded-square"]
     assert bad.endswith(f"error: {tmp_path}: is a folder, not a photo")
-    assert result.stderr == ""
+    # The error also on standard error, where it shows when the table goes to a file.
+    assert result.stderr == f"rockscan: error: {tmp_path}: is a folder, not a photo\n"
 
 
 def test_all_good_exits_zero_and_table_matches_json(rendered):
     path = rendered["three-faced-blunt"][0]
-    table, as_json = run(path), run("--json", path)
+    table, as_json = run(path, env={"COLUMNS": "120"}), run("--json", path)
     assert table.exit_code == as_json.exit_code == 0
     record = lines(as_json.stdout)[0]
     row = table.stdout.splitlines()[1].split()
     assert row[2:5] == [record["match"], record["nearest"], f"{record['mscore']:.3f}"]
+
+
+def test_json_errors_also_go_to_stderr(rendered, tmp_path):
+    missing = str(tmp_path / "missing.png")
+    result = run("--json", rendered["teardrop"][0], missing)
+    assert result.exit_code == 1
+    assert lines(result.stdout)[1] == {"path": missing, "error": f"{missing}: file not found"}
+    assert result.stderr == f"rockscan: error: {missing}: file not found\n"
+
+
+# ---------------------------------------------------------------- the table
+
+
+@pytest.mark.parametrize("columns", [80, 120, 200])
+def test_table_fits_the_terminal_and_cuts_long_paths_in_the_middle(rendered, tmp_path, columns):
+    deep = tmp_path / ("a-very-long-folder-name-" * 4) / "deeper"
+    deep.mkdir(parents=True)
+    long_path = deep / "the-star-photo.png"
+    long_path.write_bytes(Path(rendered["six-pointed-star"][0]).read_bytes())
+    spec = tmp_path / "long.toml"
+    long_name = "six-pointed-star-with-a-name-too-long-for-any-table"
+    write_spec(
+        [ShapeSpec(long_name, SHAPES["six-pointed-star"]), ShapeSpec("blunt", SHAPES["three-faced-blunt"])],
+        spec,
+    )
+    result = run(
+        "--library",
+        str(spec),
+        str(long_path),
+        rendered["three-faced-blunt"][0],
+        env={"COLUMNS": str(columns)},
+    )
+    assert result.exit_code == 0, result.output
+    header, star, blunt = result.stdout.splitlines()
+    assert max(len(line) for line in (header, star, blunt)) <= columns
+    # Every column starts (names) or ends (numbers) where its header does:
+    # long names and paths push nothing out of line.
+    for row in (star, blunt):
+        for word in ("match", "nearest"):
+            at = header.index(word)
+            assert row[at - 1] == " " and row[at] != " ", (word, row)
+        for word in ("rock", "MScore", "distance", "angle"):
+            end = header.index(word) + len(word)
+            assert row[end - 1] != " " and (end == len(row) or row[end] == " "), (word, row)
+    # The centroid column (also in --json) gives way first: it shows where everything fits.
+    assert ("centroid" in header) == (columns >= 200)
+    cell = star.split()[0]
+    if len(str(long_path)) > len(cell):
+        head, tail = cell.split("...")
+        assert str(long_path).startswith(head) and str(long_path).endswith(tail) and tail.endswith(".png")
+        assert abs(len(head) - len(tail)) <= 1
+    else:
+        assert cell == str(long_path)
+    names = star[header.index("match") : header.index("MScore")].split()
+    assert len(names) == 2 and names[0] == names[1]
+    assert long_name.startswith(names[0].split("...")[0]) and long_name.endswith(names[0].split("...")[-1])
+
+
+def test_cut_middle_keeps_both_ends():
+    from rockscan.cli._classify import _cut_middle
+
+    assert _cut_middle("short", 10) == "short"
+    assert _cut_middle("abcdefghijklmnopqrstuvwxyz", 10) == "abc...wxyz"
+    assert all(len(_cut_middle("x" * 50, w)) == w for w in range(1, 50))
+
+
+# ---------------------------------------------------------------- paths on standard input
+
+
+def test_dash_reads_photo_paths_from_standard_input(rendered):
+    star, blunt, drop = (rendered[n][0] for n in ("six-pointed-star", "three-faced-blunt", "teardrop"))
+    result = run("--json", "-", input=f"{star}\n\n   \n{blunt}\r\n")
+    assert result.exit_code == 0, result.output
+    assert [r["path"] for r in lines(result.stdout)] == [star, blunt]
+    # Mixed with paths: the piped ones stand where the '-' stands.
+    result = run("--json", drop, "-", drop, input=f"{star}\n")
+    assert [r["path"] for r in lines(result.stdout)] == [drop, star, drop]
+
+
+@pytest.mark.parametrize(
+    ("args", "stdin", "message"),
+    [
+        (["-", "-"], "x.png\n", "may be given once"),
+        (["-"], "\n  \n", "standard input holds no photo paths"),
+    ],
+)
+def test_dash_misuse_is_a_usage_error(args, stdin, message):
+    result = run(*args, input=stdin)
+    assert result.exit_code == 2 and message in result.stderr
+
+
+# ---------------------------------------------------------------- sizes
+
+
+def test_px_per_mm_adds_sizes_in_millimetres(rendered):
+    path = rendered["teardrop"][0]
+    plain = lines(run("--json", path).stdout)[0]
+    assert not {"area_mm2", "equivalent_diameter_mm", "major_axis_mm", "minor_axis_mm"} & set(plain)
+    result = run("--json", "--px-per-mm", "2.5", path)
+    assert result.exit_code == 0, result.output
+    record = lines(result.stdout)[0]
+    assert record["area_mm2"] == pytest.approx(plain["area_px"] / 2.5**2, rel=1e-4)
+    assert record["major_axis_mm"] >= record["minor_axis_mm"] > 0
+    assert record["equivalent_diameter_mm"] == pytest.approx(
+        np.sqrt(4 * record["area_mm2"] / np.pi), rel=1e-3
+    )
+    assert {k: v for k, v in record.items() if not k.endswith("_mm") and k != "area_mm2"} == plain
+
+
+@pytest.mark.parametrize("value", ["0", "-1", "many"])
+def test_px_per_mm_must_be_positive(rendered, value):
+    result = run("--px-per-mm", value, rendered["teardrop"][0])
+    assert result.exit_code == 2 and "--px-per-mm" in result.stderr
 
 
 # ---------------------------------------------------------------- --all
@@ -259,6 +375,33 @@ def test_plot_writes_one_file_per_photo(rendered, tmp_path):
     assert result.exit_code == 1
     written = sorted(p.name for p in tmp_path.glob("many-*.png"))
     assert written == ["many-teardrop-0.png", "many-teardrop-1.png"]
+    # Another run into the same names: refused, or with --overwrite replaced, and
+    # plots of the earlier run that this one does not replace are named.
+    paths = [rendered["teardrop"][0], rendered["six-pointed-star"][0]]
+    refused = run("--plot", str(tmp_path / "many.png"), *[str(twin), *paths])
+    assert refused.exit_code == 2 and "many-teardrop-0.png and 1 more exists" in refused.stderr
+    result = run("--plot", str(tmp_path / "many.png"), *paths)
+    assert result.exit_code == 0
+    assert (
+        "rockscan: warning: 2 other plots named" in result.stderr and "many-teardrop-0.png" in result.stderr
+    )
+
+
+def test_plot_says_what_it_wrote_and_refuses_to_replace_without_overwrite(rendered, tmp_path):
+    target = tmp_path / "plot.png"
+    result = run("--plot", str(target), rendered["teardrop"][0])
+    assert result.exit_code == 0 and result.stderr == f"rockscan: drew {target}\n"
+    first = target.read_bytes()
+    again = run(
+        "--plot", str(target), rendered["egg"][0] if "egg" in rendered else rendered["six-pointed-star"][0]
+    )
+    assert again.exit_code == 2 and "exists; give --overwrite" in again.stderr
+    assert target.read_bytes() == first
+    replaced = run("--plot", str(target), "--overwrite", rendered["six-pointed-star"][0])
+    assert replaced.exit_code == 0 and f"drew {target}" in replaced.stderr
+    assert target.read_bytes() != first
+    quiet = run("-q", "--plot", str(target), "--overwrite", rendered["teardrop"][0])
+    assert quiet.exit_code == 0 and quiet.stderr == ""
 
 
 def test_plot_that_cannot_be_written_is_an_error_but_json_goes_on(rendered, tmp_path):
@@ -376,3 +519,49 @@ def test_match_finds_shape_and_rotation_without_a_photo():
 )
 def test_match_usage_errors_exit_two(args):
     assert CliRunner().invoke(main, args).exit_code == 2
+
+
+# ---------------------------------------------------------------- the command line as a whole
+
+
+def test_python_dash_m_rockscan_is_rockscan(rendered):
+    path = rendered["teardrop"][0]
+    done = subprocess.run(
+        [sys.executable, "-m", "rockscan", "classify", "--json", path],
+        capture_output=True,
+        text=True,
+        check=False,
+    )
+    assert done.returncode == 0, done.stderr
+    direct, here = json.loads(done.stdout), lines(run("--json", path).stdout)[0]
+    assert set(direct) == set(here) and direct["nearest"] == here["nearest"] == "teardrop"
+    assert direct["mscore"] == pytest.approx(here["mscore"], rel=1e-9)
+    usage = subprocess.run(
+        [sys.executable, "-m", "rockscan", "nope"], capture_output=True, text=True, check=False
+    )
+    assert usage.returncode == 2 and "Usage: rockscan" in usage.stderr
+
+
+def _commands(group, prefix=()):
+    for name, command in group.commands.items():
+        yield (*prefix, name), command
+        if hasattr(command, "commands"):
+            yield from _commands(command, (*prefix, name))
+
+
+def test_every_command_takes_quiet_and_verbose():
+    for path, command in _commands(main):
+        opts = {opt for p in command.params for opt in getattr(p, "opts", [])}
+        assert {"-q", "-v"} <= opts, path
+
+
+def test_verbose_logs_debug_lines_and_quiet_silences_info(rendered, tmp_path):
+    path = rendered["teardrop"][0]
+    verbose = run("-v", path)
+    assert verbose.exit_code == 0 and "rockscan: debug: rockscan.pipeline:" in verbose.stderr
+    assert f"{path}: 1 rock(s)" in verbose.stderr
+    assert run(path).stderr == ""
+    # Before the command, for the whole run.
+    plot = tmp_path / "p.png"
+    before = CliRunner().invoke(main, ["-q", "classify", "--plot", str(plot), path])
+    assert before.exit_code == 0 and before.stderr == "" and plot.is_file()

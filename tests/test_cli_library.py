@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import os
 
 import numpy as np
 import pytest
@@ -141,3 +142,54 @@ def test_match_errors(runner, args, code, text):
 def test_help_and_version(runner):
     assert runner.invoke(main, ["--help"]).exit_code == 0
     assert "rockscan" in runner.invoke(main, ["--version"]).output
+
+
+# ---------------------------------------------------------------- the built-in library by name
+
+
+def test_default_names_the_built_in_library(runner, tmp_path):
+    from rockscan.io import default_library
+
+    names = default_library().names
+    shown = runner.invoke(main, ["library", "show", "default", "--json"])
+    assert shown.exit_code == 0
+    assert [json.loads(line)["name"] for line in shown.stdout.splitlines()] == list(names)
+    assert runner.invoke(main, ["library", "show", "--json"]).stdout == shown.stdout
+    table = runner.invoke(main, ["library", "show", "default"])
+    assert table.stdout.startswith("default (built-in): 14 shapes")
+    matched = runner.invoke(main, ["match", "--params", "6,6,60,55,10", "--library", "default", "--json"])
+    assert json.loads(matched.stdout)["nearest"] == "three-faced-blunt"
+
+
+def test_plot_alone_draws_beside_with_the_librarys_name(runner, tmp_path):
+    with runner.isolated_filesystem(temp_dir=tmp_path):
+        result = runner.invoke(main, ["library", "show", str(default_spec_path()), "--plot"])
+        assert result.exit_code == 0, result.output
+        assert result.stderr == "rockscan: drew default_library.png\n"
+        assert os.path.getsize("default_library.png") > 10_000
+        named = runner.invoke(main, ["library", "show", "default", "--plot", "mine.png", "-q"])
+        assert named.exit_code == 0 and named.stderr == "" and os.path.isfile("mine.png")
+
+
+# ---------------------------------------------------------------- examples
+
+
+def test_examples_copies_the_photos_and_refuses_to_replace_them(runner, tmp_path):
+    from rockscan.io import data_path
+
+    out = tmp_path / "ex"
+    result = runner.invoke(main, ["examples", str(out)])
+    assert result.exit_code == 0, result.output
+    shipped = sorted(
+        p.name for p in data_path("examples").iterdir() if p.is_file() and not p.name.startswith(("_", "."))
+    )
+    assert sorted(p.name for p in out.iterdir()) == shipped and "coin.png" in shipped
+    assert (out / "coin.png").read_bytes() == (data_path("examples") / "coin.png").read_bytes()
+    assert result.stderr == f"rockscan: copied 4 example photos ({len(shipped)} files) to {out}\n"
+    (out / "coin.png").write_bytes(b"changed")
+    again = runner.invoke(main, ["examples", str(out)])
+    assert again.exit_code == 2 and "give --overwrite" in again.stderr
+    assert (out / "coin.png").read_bytes() == b"changed"
+    assert runner.invoke(main, ["examples", str(out), "--overwrite"]).exit_code == 0
+    classified = runner.invoke(main, ["classify", "--json", str(out / "coin.png")])
+    assert json.loads(classified.stdout)["nearest"] == "circle"

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import re
 
 import numpy as np
 import pytest
@@ -138,3 +139,51 @@ def test_missing_spec_is_one_error_line(tmp_path):
     result = render(str(tmp_path / "none.toml"), "-o", str(tmp_path))
     assert result.exit_code == 1
     assert result.stderr == f"rockscan: error: {tmp_path / 'none.toml'}: spec file not found\n"
+
+
+# ---------------------------------------------------------------- earlier runs, progress
+
+
+def test_a_folder_of_an_earlier_render_is_refused_or_replaced_whole(tmp_path):
+    out = tmp_path / "out"
+    assert render("-o", str(out), "-n", "4", "--seed", "5", "--size", "64x80").exit_code == 0
+    (out / "notes.txt").write_text("mine")
+    (out / "0009-not-a-render.json").write_text("{}")
+    before = {p.name: p.read_bytes() for p in out.iterdir()}
+    refused = render("-o", str(out), "-n", "2", "--seed", "99", "--size", "64x80")
+    assert refused.exit_code == 2
+    assert "holds 4 photos of an earlier render; give --overwrite" in refused.stderr
+    assert {p.name: p.read_bytes() for p in out.iterdir()} == before
+    replaced = render("-o", str(out), "-n", "2", "--seed", "99", "--size", "64x80", "--overwrite")
+    assert replaced.exit_code == 0, replaced.output
+    # None of the earlier run is left; files that are not a render's stay.
+    names = sorted(p.name for p in out.iterdir())
+    assert names == sorted(
+        [
+            "0000-rounded-triangle.png",
+            "0000-rounded-triangle.json",
+            "0001-three-faced-blunt.png",
+            "0001-three-faced-blunt.json",
+            "notes.txt",
+            "0009-not-a-render.json",
+        ]
+    )
+    assert all(
+        json.loads((out / n).read_text()).get("seed") == 99
+        for n in names
+        if n.startswith("000") and n.endswith(".json") and n[3] != "9"
+    )
+    assert "removed the 4 photos of an earlier render" in replaced.stderr
+    assert replaced.stderr.endswith(f"rockscan: wrote 2 photos with truth (seed 99) to {out}\n")
+
+
+def test_off_a_terminal_a_long_render_logs_its_progress(tmp_path):
+    result = render("-o", str(tmp_path / "a"), "-n", "20", "--size", "32x32", "--shape", "circle")
+    assert result.exit_code == 0, result.output
+    progress = [line for line in result.stderr.splitlines() if "rendered" in line]
+    # Every tenth of the run (and every 10 s besides, on a slow machine).
+    assert {f"rockscan: rendered {k}/20 photos" for k in range(2, 21, 2)} <= set(progress)
+    assert all(re.fullmatch(r"rockscan: rendered \d+/20 photos", line) for line in progress)
+    assert progress[-1] == "rockscan: rendered 20/20 photos"
+    quiet = render("-o", str(tmp_path / "b"), "-n", "20", "--size", "32x32", "--shape", "circle", "-q")
+    assert quiet.exit_code == 0 and quiet.stderr == "" and quiet.stdout == ""

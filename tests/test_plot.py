@@ -10,8 +10,16 @@ from PIL import Image
 from rockscan.errors import ParameterError
 from rockscan.information import FaceConfig
 from rockscan.io import default_library
-from rockscan.pipeline import classify_image
-from rockscan.plot import classification_figure, library_outline_rowcol, plot_classification, plot_library
+from rockscan.match import DEFAULT_CUTOFFS, MatchConfig, match_radii
+from rockscan.pipeline import RockResult, classify_image
+from rockscan.plot import (
+    classification_figure,
+    decision_tests,
+    library_outline_rowcol,
+    match_cutoffs,
+    plot_classification,
+    plot_library,
+)
 from rockscan.polar import contour_radii
 from rockscan.render import RenderConfig, render_photo, render_scene
 from rockscan.superformula import SuperformulaParams
@@ -63,9 +71,14 @@ def test_figure_shows_photo_outline_centroid_shape_faces_and_distances(classifie
     outline = ax_zoom.get_lines()[0].get_xydata()
     np.testing.assert_allclose(outline[:-1, ::-1], rocks[0].outline.contour_rowcol)
     assert "shard" in ax_zoom.get_title() and "MScore" in ax_zoom.get_title()
-    assert ax_face.images[0].get_array().shape == (160, 160) and ax_lib.images
+    # The faces on the matcher's (theta, r) grid, their axes labelled.
+    n_angles, n_sections = library.face_config.face_shape
+    assert ax_face.images[0].get_array().shape == (n_sections, n_angles) and ax_lib.images
+    assert ax_face.images[0].get_extent() == [0.0, 360.0, 0.0, float(n_sections)]
+    for ax in (ax_face, ax_lib):
+        assert ax.get_xlabel().startswith("theta (degrees") and ax.get_ylabel() == "r (sections of 0.02)"
     assert len(ax_dist.patches) == len(library)
-    assert ax_bar.get_xlabel() == "H·q (bits)"
+    assert ax_bar.get_ylabel() == "H·q (bits)"
     ax_face_image, ax_lib_image = ax_face.images[0].get_array(), ax_lib.images[0].get_array()
     # The rock's face and the matched shape's face, turned, nearly coincide.
     assert np.abs(ax_face_image - ax_lib_image).sum() < 0.2 * ax_face_image.sum()
@@ -88,7 +101,7 @@ def test_plot_writes_png_for_many_rocks_and_for_none(tmp_path, classified):
     plot_classification(scene.pixels, [], library, tmp_path / "none.png")
     for name in ("many", "none"):
         with Image.open(tmp_path / f"{name}.png") as im:
-            assert im.size == (1200, 900)
+            assert im.size == (1200, 960)
             assert np.asarray(im.convert("L")).std() > 10
     fig = classification_figure(scene.pixels, many, library)
     outlines = [line for line in fig.axes[0].get_lines() if line.get_color() == "#ff3b30"]
@@ -126,3 +139,72 @@ def test_plot_library_draws_every_shape(tmp_path):
         assert im.size == (1100, 720)
     with pytest.raises(ParameterError, match="columns"):
         plot_library(library, tmp_path / "lib.png", columns=0)
+
+
+# ---------------------------------------------------------------- the verdict and why
+
+
+def _texts(fig):
+    return [t.get_text() for t in fig.texts]
+
+
+def test_the_figure_says_interesting_and_draws_the_cutoff_on_the_bars(classified):
+    photo, library, rocks = classified
+    fig = classification_figure(photo.pixels, rocks, library)
+    headline, why = _texts(fig)
+    assert headline == "INTERESTING: shard" and why.startswith("passes every test: distance ")
+    theta = DEFAULT_CUTOFFS["information"][0]
+    ax_dist = fig.axes[5]
+    cutoffs = [line for line in ax_dist.get_lines() if line.get_label().startswith("cutoff")]
+    assert len(cutoffs) == 1 and list(cutoffs[0].get_xdata()) == [theta, theta]
+    assert ax_dist.get_xlim()[1] > theta
+
+
+@pytest.mark.parametrize(
+    ("config", "decider"),
+    [
+        (MatchConfig(distance_cutoff=1e-4), "distance"),
+        (MatchConfig(mscore_cutoff=0.9999), "MScore"),
+        (MatchConfig(residual_cutoff=1e-4), "DFFS"),
+    ],
+)
+def test_a_rejected_rock_says_which_test_decided(classified, config, decider):
+    photo, library, rocks = classified
+    rock = rocks[0]
+    rematched = RockResult(
+        index=0, outline=rock.outline, radii=rock.radii, match=match_radii(rock.radii, library, config)
+    )
+    assert not rematched.match.interesting
+    tests = decision_tests(rematched, library, config)
+    assert [t.name for t in tests if not t.passed] == [decider]
+    fig = classification_figure(photo.pixels, [rematched], library, match_config=config)
+    headline, why = _texts(fig)
+    assert headline == "NOT INTERESTING: nearest shape 'shard' rejected"
+    assert why.startswith(f"decided by {decider} ")
+    # The bar of the nearest shape turns red when the distance test fails.
+    colors = {tuple(p.get_facecolor()) for p in fig.axes[5].patches}
+    assert (decider == "distance") == any(c[0] > 0.8 and c[1] < 0.3 for c in colors)
+
+
+def test_decision_tests_agree_with_the_matchers_verdict(classified, default_specs):
+    _, library, _ = classified
+    for spec in default_specs[:8]:
+        photo = render_photo(spec.params, RenderConfig(rows=160, cols=200, outline_noise=0.08), rng=3)
+        rock = classify_image(photo.pixels, library)[0]
+        tests = decision_tests(rock, library)
+        assert [t.name for t in tests] == ["distance", "MScore", "DFFS"]
+        assert all(t.passed for t in tests) == rock.match.interesting, spec.name
+        # The default library ranks by the eigenspace distance: w is the reported distance.
+        assert tests[0].value == pytest.approx(rock.match.distance)
+
+
+def test_cutoffs_carried_by_the_match_win():
+    class Carrying:
+        cutoff_distance = 0.5
+        cutoff_segmentation = 0.3
+
+    library = default_library()
+    cutoffs = match_cutoffs(Carrying(), library, MatchConfig(mscore_cutoff=0.7))
+    _, gamma, rho = DEFAULT_CUTOFFS["information"]
+    assert cutoffs == {"distance": 0.5, "MScore": 0.7, "DFFS": rho, "segmentation": 0.3}
+    assert match_cutoffs(Carrying(), library)["MScore"] == gamma

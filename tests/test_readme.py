@@ -1,13 +1,61 @@
-"""The README's Python example runs as printed."""
+"""The README's examples run as printed: its Python and every rockscan command of its code blocks."""
 
 from __future__ import annotations
 
+import os
 import re
+import shutil
+import subprocess
+import sys
 from pathlib import Path
 
 import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
+
+
+def readme_commands(text: str) -> list[str]:
+    """Every ``rockscan ...`` command in the README's shell code blocks, in order.
+
+    A console block's commands are its ``$ `` lines; a bash block's are all its
+    lines. Continued lines (``\\``) are joined; of ``a && b`` only the rockscan
+    parts are kept (installing is not this test's business).
+    """
+    commands = []
+    for lang, body in re.findall(r"```(bash|console|sh|shell)\n(.*?)```", text, flags=re.S):
+        body = re.sub(r"\s*\\\n\s*", " ", body)
+        for line in body.splitlines():
+            if lang == "console":
+                if not line.startswith("$ "):
+                    continue
+                line = line[2:]
+            for part in line.split("&&"):
+                part = part.strip()
+                if part.startswith("rockscan ") or part == "rockscan":
+                    commands.append(part)
+    return commands
+
+
+def test_commands_are_found_in_shell_blocks():
+    text = (
+        "```bash\npython3 -m venv v && pip install . && rockscan classify a.png \\\n  b.png\n```\n"
+        "```console\n$ rockscan examples ex\nrockscan: copied\n```\n```python\nrockscan = 1\n```\n"
+    )
+    assert readme_commands(text) == ["rockscan classify a.png b.png", "rockscan examples ex"]
+
+
+def test_every_rockscan_command_of_the_readme_runs(tmp_path):
+    # As in a clone: the project's data folder beside, a copy, so that nothing writes into the tree.
+    commands = readme_commands((ROOT / "README.md").read_text(encoding="utf-8"))
+    assert len(commands) >= 2, commands
+    shutil.copytree(ROOT / "data", tmp_path / "data", ignore=shutil.ignore_patterns("__pycache__"))
+    env = {**os.environ, "PATH": f"{Path(sys.executable).parent}{os.pathsep}{os.environ.get('PATH', '')}"}
+    for command in commands:
+        done = subprocess.run(
+            ["bash", "-c", command], cwd=tmp_path, env=env, capture_output=True, text=True, timeout=600
+        )
+        assert done.returncode == 0, f"{command}\n{done.stderr}"
+        assert "Traceback" not in done.stderr, command
 
 
 def test_the_python_example_runs(monkeypatch, capsys):
@@ -22,7 +70,7 @@ def test_the_python_example_runs(monkeypatch, capsys):
     assert printed.splitlines()[-1] == "six-pointed-star"
 
 
-@pytest.mark.parametrize("name", ["accuracy", "core-benchmark", "fit", "paper", "speed", "triage"])
+@pytest.mark.parametrize("name", ["accuracy", "cli", "core-benchmark", "fit", "paper", "speed", "triage"])
 def test_linked_sections_and_figures_exist(name):
     section = ROOT / "docs" / f"{name}.md"
     assert section.is_file()

@@ -4,16 +4,23 @@ No math lives here. Heavy modules are imported inside the commands so that
 ``rockscan --help`` starts at once. A :class:`rockscan.errors.RockscanError`
 becomes a one-line error and exit status 1; usage errors exit 2 (click).
 
-One module per command family; this one holds the group and shared options.
+One module per command family; this one holds the group, shared options and
+the logging setup: library modules log to ``rockscan.*`` loggers and never
+print; here the ``rockscan`` logger gets one handler that writes one line per
+record to standard error. Every command takes ``-q`` (warnings and errors only)
+and ``-v`` (debug lines too); the default shows what a command wrote and the
+progress of long runs.
 """
 
 from __future__ import annotations
 
 import functools
+import logging
 import os
 import sys
-from collections.abc import Callable
-from typing import Any
+import time
+from collections.abc import Callable, Iterable, Iterator
+from typing import Any, TypeVar
 
 import click
 
@@ -59,8 +66,21 @@ def _library_option(func: Callable[..., Any]) -> Callable[..., Any]:
         "library_path",
         type=click.Path(dir_okay=False),
         default=None,
-        help="Library file (.npz from 'rockscan library build') or spec (.toml). "
-        "Default: the built-in library.",
+        help=f"Library file (.npz from 'rockscan library build') or spec (.toml); "
+        f"'{DEFAULT_LIBRARY_NAME}' (the default) is the built-in library.",
+    )(func)
+
+
+def _px_per_mm_option(func: Callable[..., Any]) -> Callable[..., Any]:
+    """Add ``--px-per-mm F``; the command receives it as ``px_per_mm`` (float or None)."""
+    return click.option(
+        "--px-per-mm",
+        "px_per_mm",
+        type=click.FloatRange(min=0, min_open=True),
+        default=None,
+        metavar="F",
+        help="Photo pixels per millimetre: adds area_mm2, equivalent_diameter_mm, "
+        "major_axis_mm and minor_axis_mm.",
     )(func)
 
 
@@ -140,11 +160,16 @@ def _match_options(func: Callable[..., Any]) -> Callable[..., Any]:
     return wrapper
 
 
+#: The name that stands for the built-in library wherever a library is asked for
+#: (``./default`` names a file called default).
+DEFAULT_LIBRARY_NAME = "default"
+
+
 def _load_library(path: str | None) -> Any:
     from rockscan.io import default_library, load_library, read_spec
     from rockscan.library import Library
 
-    if path is None:
+    if path is None or path == DEFAULT_LIBRARY_NAME:
         return default_library()
     if path.lower().endswith(".toml"):
         shapes = read_spec(path)
@@ -156,9 +181,110 @@ def _load_library(path: str | None) -> Any:
     return load_library(path)
 
 
+# ---------------------------------------------------------------- logging and progress
+
+#: The logger every rockscan module logs under.
+LOGGER_NAME = "rockscan"
+log = logging.getLogger(f"{LOGGER_NAME}.cli")
+
+
+class _StderrHandler(logging.Handler):
+    """One line per record on the standard error in force (click's, so tests capture it)."""
+
+    def emit(self, record: logging.LogRecord) -> None:
+        try:
+            click.echo(self.format(record), err=True)
+        except Exception:
+            self.handleError(record)
+
+
+class _Formatter(logging.Formatter):
+    """``rockscan: message``, with the level named for warnings, errors and debug lines."""
+
+    def format(self, record: logging.LogRecord) -> str:
+        message = record.getMessage()
+        if record.levelno >= logging.ERROR:
+            return f"rockscan: error: {message}"
+        if record.levelno >= logging.WARNING:
+            return f"rockscan: warning: {message}"
+        if record.levelno >= logging.INFO:
+            return f"rockscan: {message}"
+        return f"rockscan: debug: {record.name}: {message}"
+
+
+def _configure_logging(verbosity: int) -> None:
+    """Set the ``rockscan`` logger's level: -1 quiet (warnings), 0 info, 1 (or more) debug.
+
+    The handler is added once, however many commands run in one process.
+    """
+    logger = logging.getLogger(LOGGER_NAME)
+    if not any(isinstance(h, _StderrHandler) for h in logger.handlers):
+        handler = _StderrHandler()
+        handler.setFormatter(_Formatter())
+        logger.addHandler(handler)
+        # The lines are the command's own; a host application's root handlers would print them twice.
+        logger.propagate = False
+    logger.setLevel(logging.WARNING if verbosity < 0 else logging.INFO if verbosity == 0 else logging.DEBUG)
+
+
+def _verbosity_callback(ctx: click.Context, param: click.Parameter, value: int | bool) -> None:
+    # Only when given, so that a command's default does not undo a -q/-v before it.
+    if value:
+        _configure_logging(-1 if param.name == "quiet" else int(value))
+
+
+#: The verbosity options every command gets: flags, keyword arguments of click.Option.
+_VERBOSITY = (
+    (("-v", "--verbose"), {"count": True, "help": "Say more: debug lines too."}),
+    (("-q", "--quiet"), {"is_flag": True, "help": "Only warnings and errors on standard error."}),
+)
+
+
+def _verbosity_options(command: click.Command) -> None:
+    """Give a command (and its subcommands) -q/--quiet and -v/--verbose, unless it has its own."""
+    taken = {opt for p in command.params for opt in getattr(p, "opts", [])}
+    for flags, kwargs in _VERBOSITY:
+        if not set(flags) & taken:
+            command.params.append(
+                click.Option(list(flags), expose_value=False, callback=_verbosity_callback, **kwargs)
+            )
+    for sub in getattr(command, "commands", {}).values():
+        _verbosity_options(sub)
+
+
+_T = TypeVar("_T")
+
+
+def _progress(items: Iterable[_T], total: int, *, unit: str, verb: str, minimum: int = 20) -> Iterator[_T]:
+    """Yield ``items``, showing progress of a long run (``minimum`` items or more).
+
+    On a terminal a tqdm bar; elsewhere (a pipe, a log file) a log line every
+    tenth of the run or every 10 seconds, whichever comes first, so that a
+    batch job's log shows it is alive. Quiet (-q) shows neither.
+    """
+    if total < minimum or not log.isEnabledFor(logging.INFO):
+        yield from items
+        return
+    if sys.stderr.isatty():
+        from tqdm import tqdm
+
+        yield from tqdm(items, total=total, unit=unit, file=sys.stderr)
+        return
+    step = max(1, -(-total // 10))
+    last = time.monotonic()
+    for done, item in enumerate(items, start=1):
+        yield item
+        now = time.monotonic()
+        if done % step == 0 or done == total or now - last >= 10.0:
+            log.info("%s %d/%d %ss", verb, done, total, unit)
+            last = now
+
+
 @click.group(context_settings={"help_option_names": ["-h", "--help"], "max_content_width": 100})
 @click.version_option(package_name="rockscan", prog_name="rockscan")
-def main() -> None:
+@click.option("-v", "--verbose", count=True, help="Say more: debug lines too (also after the command).")
+@click.option("-q", "--quiet", is_flag=True, help="Only warnings and errors (also after the command).")
+def main(verbose: int, quiet: bool) -> None:
     """Judge rock samples by their shape.
 
     rockscan finds the rock in a photo, measures its outline, and matches it
@@ -171,6 +297,7 @@ def main() -> None:
     # in the last digit). Set before numpy loads; the user's own setting wins.
     for name in _BLAS_THREAD_VARIABLES:
         os.environ.setdefault(name, "1")
+    _configure_logging(-1 if quiet else verbose)
 
 
 #: Environment variables that set the BLAS libraries' thread counts.
@@ -178,7 +305,10 @@ _BLAS_THREAD_VARIABLES = ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_TH
 
 
 def _register() -> None:
-    from rockscan.cli import _classify, _fit, _library, _render, _triage  # noqa: F401
+    from rockscan.cli import _classify, _examples, _fit, _library, _render, _triage  # noqa: F401
+
+    for command in main.commands.values():
+        _verbosity_options(command)
 
 
 _register()

@@ -4,12 +4,13 @@ from __future__ import annotations
 
 import json
 import os
+import shutil
 import sys
 from typing import Any
 
 import click
 
-from rockscan.cli import _errors, _library_option, _load_library, _match_options, main
+from rockscan.cli import _errors, _library_option, _load_library, _match_options, _px_per_mm_option, log, main
 
 # ---------------------------------------------------------------- match (no photo)
 
@@ -84,16 +85,12 @@ def match_cmd(
 
 # ---------------------------------------------------------------- classify
 
-_COLUMNS = (
-    f"{'photo':<32} {'rock':>4}  {'match':<20} {'nearest':<20} {'MScore':>6} "
-    f"{'distance':>9} {'angle':>6}  {'centroid (x, y)':<18}"
-)
-
 
 @main.command("classify")
-@click.argument("photos", nargs=-1, required=True, type=click.Path())
+@click.argument("photos", nargs=-1, required=True, type=click.Path(), metavar="PHOTO...")
 @_library_option
 @_match_options
+@_px_per_mm_option
 @click.option(
     "--json", "as_json", is_flag=True, help="One JSON object per line per photo (per rock with --all)."
 )
@@ -108,20 +105,25 @@ _COLUMNS = (
     help="Draw each photo with outline, centroid, matched shape, information face and distances "
     "(PNG). With several photos, the photo's name is added to the file name.",
 )
+@click.option("--overwrite", is_flag=True, help="Replace plots that exist (default: refuse).")
 @_errors
 def classify(
     photos: tuple[str, ...],
     library_path: str | None,
     match_config: Any,
+    px_per_mm: float | None,
     as_json: bool,
     all_rocks: bool,
     plot_path: str | None,
+    overwrite: bool,
 ) -> None:
     """Find the rock in each photo and say which library shape it is closest to.
 
-    PHOTO is a PNG, JPEG, TIFF or BMP file (gray, RGB or RGBA; 8 or 16 bits).
+    PHOTO is a PNG, JPEG, TIFF or BMP file (gray, RGB or RGBA; 8 or 16 bits);
+    '-' reads photo paths from standard input, one a line (e.g. from find).
     A photo that cannot be classified gives an error line (with --json,
-    {"path": ..., "error": ...}) and the others are still processed.
+    {"path": ..., "error": ...}), also on standard error, and the others are
+    still processed.
 
     Exit status: 0 when every photo was classified, 1 when any could not be,
     2 for usage errors.
@@ -129,16 +131,14 @@ def classify(
     from rockscan.errors import RockscanError
     from rockscan.pipeline import ClassifyConfig, classify_path
 
-    if plot_path is not None:
-        folder = os.path.dirname(os.path.abspath(plot_path))
-        if not os.path.isdir(folder):
-            raise click.BadParameter(f"folder {folder!r} does not exist", param_hint="--plot")
+    photos = _expand_stdin(photos)
+    targets = _plot_targets(plot_path, photos, overwrite=overwrite) if plot_path else {}
     lib = _load_library(library_path)
-    config = ClassifyConfig(match=match_config)
+    config = ClassifyConfig(match=match_config, px_per_mm=px_per_mm)
     failed = 0
-    targets = _plot_targets(plot_path, photos) if plot_path else {}
-    if not as_json:
-        click.echo(_COLUMNS)
+    table = None if as_json else _Table(photos, lib.names, shutil.get_terminal_size((120, 24)).columns)
+    if table is not None:
+        click.echo(table.header())
     for i, photo in enumerate(photos):
         result = classify_path(photo, lib, config, all_rocks=all_rocks)
         failed += not result.ok
@@ -146,48 +146,162 @@ def classify(
             for record in result.records():
                 click.echo(json.dumps(record))
         elif not result.ok:
-            click.echo(f"{_short(photo, 32):<32} error: {result.error}")
+            click.echo(table.error_row(photo, result.error))
         else:
             for rock in result.rocks:
-                m = rock.match
-                cx, cy = rock.centroid_xy
-                click.echo(
-                    f"{_short(photo, 32):<32} {rock.index:>4}  {(m.match or '-'):<20} {m.nearest:<20} "
-                    f"{m.mscore:>6.3f} {m.distance:>9.4g} {m.angle_deg:>6.1f}  ({cx:.1f}, {cy:.1f})"
-                )
+                click.echo(table.row(photo, rock))
         sys.stdout.flush()
+        if not result.ok:
+            # Errors also on standard error, so that they show when the table or JSON goes to a file.
+            log.error("%s", result.error if result.error.startswith(photo) else f"{photo}: {result.error}")
         if plot_path and result.ok:
             try:
-                _plot(photo, result.rocks, lib, targets[i], config.segment.work_size)
+                _plot(photo, result.rocks, lib, targets[i], config)
             except RockscanError as exc:
-                click.echo(f"rockscan: error: {exc}", err=True)
+                log.error("%s", exc)
                 failed += 1
+            else:
+                log.info("drew %s", targets[i])
     sys.exit(1 if failed else 0)
 
 
-def _plot(photo: str, rocks: Any, lib: Any, target: str, work_size: int) -> None:
+def _expand_stdin(photos: tuple[str, ...]) -> tuple[str, ...]:
+    """Replace a '-' by the paths on standard input (one a line, blank lines skipped)."""
+    if photos.count("-") > 1:
+        raise click.BadParameter("'-' (paths from standard input) may be given once", param_hint="PHOTO")
+    if "-" not in photos:
+        return photos
+    stream = click.get_text_stream("stdin")
+    if stream.isatty():
+        raise click.BadParameter(
+            "'-' reads photo paths from standard input, which is a terminal: pipe them in "
+            "(e.g. find DIR -name '*.jpg' | rockscan classify -)",
+            param_hint="PHOTO",
+        )
+    read = [line.rstrip("\r\n") for line in stream]
+    read = [line for line in read if line.strip()]
+    if not read:
+        raise click.BadParameter("'-' given but standard input holds no photo paths", param_hint="PHOTO")
+    at = photos.index("-")
+    return (*photos[:at], *read, *photos[at + 1 :])
+
+
+def _plot(photo: str, rocks: Any, lib: Any, target: str, config: Any) -> None:
     from rockscan.io import read_image
     from rockscan.plot import plot_classification
 
     # The plot needs no more detail than the segmentation saw: read reduced.
-    image = read_image(photo, max_side=2 * work_size)
+    image = read_image(photo, max_side=2 * config.segment.work_size)
     plot_classification(
-        image.pixels, list(rocks), lib, target, title=os.path.basename(photo), scale=image.scale
+        image.pixels,
+        list(rocks),
+        lib,
+        target,
+        title=os.path.basename(photo),
+        scale=image.scale,
+        match_config=config.match,
     )
 
 
-def _plot_targets(plot_path: str, photos: tuple[str, ...]) -> dict[int, str]:
+def _plot_targets(plot_path: str, photos: tuple[str, ...], *, overwrite: bool) -> dict[int, str]:
     """One plot file per photo: the given name for one photo, else the name plus
-    the photo's stem (and its position, if two photos share a stem)."""
+    the photo's stem (and its position, if two photos share a stem).
+
+    Refuses (a usage error) when a plot would replace a file, unless ``overwrite``:
+    a folder never holds plots of two runs without the user asking for it.
+    """
+    folder = os.path.dirname(os.path.abspath(plot_path))
+    if not os.path.isdir(folder):
+        raise click.BadParameter(f"folder {folder!r} does not exist", param_hint="--plot")
     if len(photos) == 1:
-        return {0: plot_path}
-    root, ext = os.path.splitext(plot_path)
-    stems = [os.path.splitext(os.path.basename(p))[0] for p in photos]
-    return {
-        i: f"{root}-{stem}{'-' + str(i) if stems.count(stem) > 1 else ''}{ext or '.png'}"
-        for i, stem in enumerate(stems)
-    }
+        targets = {0: plot_path}
+    else:
+        root, ext = os.path.splitext(plot_path)
+        stems = [os.path.splitext(os.path.basename(p))[0] for p in photos]
+        targets = {
+            i: f"{root}-{stem}{'-' + str(i) if stems.count(stem) > 1 else ''}{ext or '.png'}"
+            for i, stem in enumerate(stems)
+        }
+    existing = [t for t in targets.values() if os.path.lexists(t)]
+    if existing and not overwrite:
+        more = f" and {len(existing) - 1} more" if len(existing) > 1 else ""
+        raise click.BadParameter(
+            f"{existing[0]}{more} exists; give --overwrite to replace, or another name", param_hint="--plot"
+        )
+    if existing:
+        log.info("replacing %d earlier plot%s", len(existing), "s" if len(existing) > 1 else "")
+    if len(photos) > 1:
+        import glob
+
+        root, ext = os.path.splitext(plot_path)
+        pattern = f"{glob.escape(root)}-*{ext or '.png'}"
+        others = sorted(set(glob.glob(pattern)) - set(targets.values()))
+        if others:
+            log.warning(
+                "%d other plot%s named %s (of an earlier run?) stay beside these, e.g. %s",
+                len(others),
+                "s" if len(others) > 1 else "",
+                pattern,
+                others[0],
+            )
+    return targets
 
 
-def _short(text: str, width: int) -> str:
-    return text if len(text) <= width else "..." + text[-(width - 3) :]
+class _Table:
+    """The classify table, its columns fitted to a terminal ``width`` characters wide.
+
+    The numbers keep their widths; the shape columns are as wide as the
+    library's longest name and the photo column takes the rest, up to the
+    longest path, so that every row lines up. On a narrow terminal the
+    centroid column (also in --json) goes first, then names and paths are cut
+    in the middle.
+    """
+
+    #: Width of the rock index, MScore, distance and angle columns and the gaps.
+    _FIXED = 1 + 4 + 2 + 1 + 1 + 6 + 1 + 9 + 1 + 6
+    #: The centroid column, up to (9999.9, 9999.9), and its gap.
+    _CENTROID = 2 + 16
+    _MIN_PHOTO = 12
+
+    def __init__(self, photos: tuple[str, ...], names: tuple[str, ...], width: int) -> None:
+        longest = max([len("nearest"), *(len(n) for n in names)])
+        longest_photo = max([len("photo"), *(len(p) for p in photos)])
+        room = width - self._FIXED - self._CENTROID
+        self.centroid = room >= self._MIN_PHOTO + 2 * longest
+        if not self.centroid:
+            room += self._CENTROID
+        # The paths get at least a third of the room (less if they are shorter), the names the rest.
+        photo_share = max(self._MIN_PHOTO, min(longest_photo, room // 3))
+        self.name_w = max(min(longest, (room - photo_share) // 2), 9)
+        self.photo_w = min(max(room - 2 * self.name_w, self._MIN_PHOTO), longest_photo)
+
+    def header(self) -> str:
+        return (
+            f"{'photo':<{self.photo_w}} {'rock':>4}  {'match':<{self.name_w}} {'nearest':<{self.name_w}} "
+            f"{'MScore':>6} {'distance':>9} {'angle':>6}" + ("  centroid (x, y)" if self.centroid else "")
+        )
+
+    def row(self, photo: str, rock: Any) -> str:
+        m = rock.match
+        cx, cy = rock.centroid_xy
+        return (
+            f"{_cut_middle(photo, self.photo_w):<{self.photo_w}} {rock.index:>4}  "
+            f"{_cut_middle(m.match or '-', self.name_w):<{self.name_w}} "
+            f"{_cut_middle(m.nearest, self.name_w):<{self.name_w}} "
+            f"{m.mscore:>6.3f} {m.distance:>9.4g} {m.angle_deg:>6.1f}"
+            + (f"  ({cx:.1f}, {cy:.1f})" if self.centroid else "")
+        )
+
+    def error_row(self, photo: str, error: str) -> str:
+        return f"{_cut_middle(photo, self.photo_w):<{self.photo_w}} error: {error}"
+
+
+def _cut_middle(text: str, width: int) -> str:
+    """``text`` in at most ``width`` characters: its middle replaced by '...' if too long,
+    so that a path keeps its start (the folder) and its end (the file name)."""
+    if len(text) <= width:
+        return text
+    if width <= 3:
+        return text[:width]
+    tail = (width - 3) // 2 + (width - 3) % 2
+    return text[: width - 3 - tail] + "..." + text[len(text) - tail :]

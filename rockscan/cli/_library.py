@@ -3,11 +3,12 @@
 from __future__ import annotations
 
 import json
+import os
 
 import click
 
 from rockscan._choices import FACE_KINDS, GRIDS
-from rockscan.cli import _errors, _load_library, main
+from rockscan.cli import DEFAULT_LIBRARY_NAME, _errors, _load_library, log, main
 
 # ---------------------------------------------------------------- library
 
@@ -97,15 +98,24 @@ def library_build(
 
 
 @library.command("show")
-@click.argument("lib", type=click.Path(dir_okay=False))
+@click.argument("lib", type=click.Path(dir_okay=False), default=DEFAULT_LIBRARY_NAME)
 @click.option(
-    "--plot", "plot_path", type=click.Path(dir_okay=False), default=None, help="Draw the shapes to a PNG."
+    "--plot",
+    "plot_path",
+    type=click.Path(dir_okay=False),
+    is_flag=False,
+    flag_value="",
+    default=None,
+    help="Draw the shapes to a PNG: --plot OUT.png, or --plot alone for LIBNAME.png here.",
 )
 @click.option("--json", "as_json", is_flag=True, help="One JSON object per shape.")
 @_errors
 def library_show(lib: str, plot_path: str | None, as_json: bool) -> None:
-    """List a library's shapes (a .npz library or a .toml spec)."""
+    """List a library's shapes: LIB is a .npz library, a .toml spec, or 'default'
+    (the built-in library, also when LIB is left out)."""
     library_obj = _load_library(lib)
+    if plot_path == "":
+        plot_path = os.path.splitext(os.path.basename(lib))[0] + ".png"
     face = library_obj.face_config
     if as_json:
         for i, name in enumerate(library_obj.names):
@@ -121,8 +131,9 @@ def library_show(lib: str, plot_path: str | None, as_json: bool) -> None:
                 )
             )
     else:
+        label = f"{lib} (built-in)" if lib == DEFAULT_LIBRARY_NAME else lib
         click.echo(
-            f"{lib}: {len(library_obj)} shapes, {library_obj.basis.n_components} eigenfaces; "
+            f"{label}: {len(library_obj)} shapes, {library_obj.basis.n_components} eigenfaces; "
             f"face {face.kind} on a {face.grid} grid {'x'.join(map(str, face.face_shape))}, "
             f"sigma {face.sigma:g}"
         )
@@ -138,4 +149,4 @@ def library_show(lib: str, plot_path: str | None, as_json: bool) -> None:
         from rockscan.plot import plot_library
 
         plot_library(library_obj, plot_path)
-        click.echo(f"drew {plot_path}", err=as_json)
+        log.info("drew %s", plot_path)

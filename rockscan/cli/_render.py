@@ -4,12 +4,12 @@ from __future__ import annotations
 
 import json
 import os
-import sys
+import re
 
 import click
 
 from rockscan._choices import RENDER_POLARITIES
-from rockscan.cli import _errors, main
+from rockscan.cli import _errors, _progress, log, main
 
 # ---------------------------------------------------------------- render
 
@@ -102,6 +102,12 @@ from rockscan.cli import _errors, main
     default=None,
     help="File format (default: png, or jpg with --jpeg).",
 )
+@click.option(
+    "--overwrite",
+    is_flag=True,
+    help="Replace the photos of an earlier render in the folder (all of them, so that none is left "
+    "from that run); default: refuse.",
+)
 @_errors
 def render_cmd(
     spec: str | None,
@@ -127,6 +133,7 @@ def render_cmd(
     gray: bool,
     bits: str,
     fmt: str | None,
+    overwrite: bool,
 ) -> None:
     """Draw synthetic rock photos of a spec's shapes, each with a ground-truth JSON.
 
@@ -135,6 +142,8 @@ def render_cmd(
     scale, position, centroid, polarity, symmetry and every render setting.
     The same --seed draws the same photos; photo i alone is
     rockscan.render.render_photo(params, config, rng=[seed, i]).
+    A folder that holds an earlier render is refused, unless --overwrite,
+    which first removes that render's photos and truth (other files stay).
     """
     import numpy as np
 
@@ -179,15 +188,22 @@ def render_cmd(
     suffix = "." + (fmt or ("jpg" if jpeg_quality else "png"))
     if suffix in (".jpg", ".bmp") and config.bit_depth == 16:
         raise click.UsageError(f"{suffix[1:].upper()} photos are 8 bits; use --bits 8 or --format png/tif")
+    earlier = _earlier_render(out_dir)
+    if earlier and not overwrite:
+        raise click.UsageError(
+            f"{out_dir} holds {len(earlier) // 2} photos of an earlier render; give --overwrite to "
+            "replace them (they are all removed first), or another folder"
+        )
     try:
         os.makedirs(out_dir, exist_ok=True)
+        for name in earlier:
+            os.remove(os.path.join(out_dir, name))
     except OSError as exc:
-        raise ParameterError(f"{out_dir}: cannot create the folder ({exc.strerror or exc})") from None
+        raise ParameterError(f"{out_dir}: cannot prepare the folder ({exc.strerror or exc})") from None
+    if earlier:
+        log.info("removed the %d photos of an earlier render from %s", len(earlier) // 2, out_dir)
     total = count if count is not None else len(shapes)
-    from tqdm import tqdm
-
-    # A progress bar for a person watching a long run; none in pipes and logs.
-    for i in tqdm(range(total), unit="photo", file=sys.stderr, disable=total < 20 or not sys.stderr.isatty()):
+    for i in _progress(range(total), total, unit="photo", verb="rendered"):
         rng = np.random.default_rng([seed, i])
         if rocks == 1:
             shape = shapes[i % len(shapes)]
@@ -204,4 +220,34 @@ def render_cmd(
                 json.dump(truth, fh, indent=1)
         except OSError as exc:
             raise ParameterError(f"{out_dir}: cannot write the truth ({exc.strerror or exc})") from None
-    click.echo(f"wrote {total} photos with truth to {out_dir}")
+    log.info("wrote %d photos with truth (seed %d) to %s", total, seed, out_dir)
+
+
+#: A rendered photo's truth file: NNNN-NAME.json.
+_TRUTH_NAME = re.compile(r"\d{4}-[a-z0-9-]+\.json")
+
+
+def _earlier_render(folder: str) -> list[str]:
+    """The photos and truth files an earlier ``rockscan render`` left in ``folder``.
+
+    A photo counts only beside its truth file naming it, so that no other file
+    is ever taken for one.
+    """
+    if not os.path.isdir(folder):
+        return []
+    found = []
+    for name in sorted(os.listdir(folder)):
+        if not _TRUTH_NAME.fullmatch(name):
+            continue
+        try:
+            with open(os.path.join(folder, name), encoding="utf-8") as fh:
+                photo = json.load(fh).get("photo")
+        except (OSError, ValueError, AttributeError):
+            continue
+        if (
+            isinstance(photo, str)
+            and os.path.splitext(photo)[0] == name[:-5]
+            and os.path.isfile(os.path.join(folder, photo))
+        ):
+            found += [photo, name]
+    return found
