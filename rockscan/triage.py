@@ -889,15 +889,18 @@ class _DaskBackend:
 
 
 class _QuietLogger:
-    """Silence a library's logger for a while, then put its level back."""
+    """Silence a library's loggers (the named one and its children) for a while,
+    then put their levels back."""
 
     def __init__(self, name: str) -> None:
-        self._logger = logging.getLogger(name)
-        self._level = self._logger.level
-        self._logger.setLevel(logging.CRITICAL + 1)
+        names = [name, *(n for n in logging.root.manager.loggerDict if n.startswith(name + "."))]
+        self._levels = {n: logging.getLogger(n).level for n in names}
+        for n in names:
+            logging.getLogger(n).setLevel(logging.CRITICAL + 1)
 
     def restore(self) -> None:
-        self._logger.setLevel(self._level)
+        for n, level in self._levels.items():
+            logging.getLogger(n).setLevel(level)
 
 
 #: How long to wait for a photo before asking the backend whether it is alive, seconds.
