@@ -6,6 +6,7 @@ prints: the command line formats what they return.
 
 from __future__ import annotations
 
+import math
 import os
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING
@@ -13,7 +14,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 from numpy.typing import NDArray
 
-from rockscan.errors import RockscanError
+from rockscan.errors import ParameterError, RockscanError
 from rockscan.match import Match, MatchConfig, match_radii
 from rockscan.outline import Outline, trace_outline
 from rockscan.polar import contour_radii
@@ -37,10 +38,29 @@ __all__ = [
 
 @dataclass(frozen=True)
 class ClassifyConfig:
-    """Settings for classifying photos: segmentation and matching."""
+    """Settings for classifying photos: segmentation, matching and scale.
+
+    Parameters
+    ----------
+    segment : SegmentConfig
+    match : MatchConfig
+    px_per_mm : float, optional
+        Photo pixels per millimetre on the ground (square pixels). When given,
+        every rock line also carries its sizes in millimetres (see
+        :mod:`rockscan.measure` for their definitions).
+    """
 
     segment: SegmentConfig = field(default_factory=SegmentConfig)
     match: MatchConfig = field(default_factory=MatchConfig)
+    px_per_mm: float | None = None
+
+    def __post_init__(self) -> None:
+        value = self.px_per_mm
+        number = isinstance(value, (int, float)) and not isinstance(value, bool)
+        if value is not None and not (number and math.isfinite(value) and value > 0):
+            raise ParameterError(
+                f"px_per_mm must be a positive number (pixels per millimetre), got {value!r}"
+            )
 
 
 @dataclass(frozen=True, eq=False)
@@ -56,12 +76,20 @@ class RockResult:
     radii : (n_angles,) ndarray of float
         Radii about the centroid, in photo pixels.
     match : Match
+    contrast_score : float, optional
+        How clearly the rock stands out from the ground around it, in [0, 1]
+        (:func:`rockscan.measure.contrast_score`); the record's
+        ``segmentation_score`` when no calibrated score is at hand.
+    px_per_mm : float, optional
+        Photo pixels per millimetre: the record then carries sizes in mm.
     """
 
     index: int
     outline: Outline
     radii: NDArray[np.float64]
     match: Match
+    contrast_score: float | None = None
+    px_per_mm: float | None = None
 
     @property
     def centroid_xy(self) -> tuple[float, float]:
@@ -69,14 +97,46 @@ class RockResult:
         row, col = self.outline.centroid_rowcol
         return (float(col), float(row))
 
+    @property
+    def outline_xy(self) -> NDArray[np.float64]:
+        """The outline as reported: (x, y) = (col, row) photo pixels, counter-clockwise on
+        screen, simplified (:func:`rockscan.measure.report_outline_xy`)."""
+        from rockscan.measure import report_outline_xy
+
+        return report_outline_xy(self.outline.contour_rowcol, min_points=_OUTLINE_MIN_POINTS)
+
     def to_dict(self) -> dict[str, object]:
-        """Interface keys for this rock (without ``path``)."""
-        return {
+        """Interface keys for this rock (without ``path``).
+
+        ``outline`` is :attr:`outline_xy` to 0.01 px; ``area_px`` and ``centroid``
+        are those of the traced outline. ``segmentation_score`` is a calibrated
+        score where the result has one, else :attr:`contrast_score`. With
+        ``px_per_mm``, the sizes of :func:`rockscan.measure.outline_sizes` of
+        the traced outline (so that ``area_mm2 = area_px / px_per_mm**2``).
+        """
+        from rockscan.measure import outline_sizes
+
+        xy = self.outline_xy
+        score = getattr(self, "segmentation_score", None)
+        if score is None:
+            score = self.contrast_score
+        record: dict[str, object] = {
             **self.match.to_dict(),
             "centroid": [round(self.centroid_xy[0], 3), round(self.centroid_xy[1], 3)],
             "index": self.index,
             "area_px": round(self.outline.area_px, 1),
+            # Unknown (a result made without its photo) is reported as no confidence.
+            "segmentation_score": round(float(np.clip(score, 0.0, 1.0)), 4) if score is not None else 0.0,
+            "outline": np.round(xy, 2).tolist(),
         }
+        if self.px_per_mm is not None:
+            sizes = outline_sizes(self.outline.contour_rowcol[:, ::-1], self.px_per_mm)
+            record.update({k: round(v, 4) for k, v in vars(sizes).items()})
+        return record
+
+
+#: Fewest vertices of a reported outline (the interface's minimum).
+_OUTLINE_MIN_POINTS = 64
 
 
 @dataclass(frozen=True, eq=False)
@@ -171,13 +231,37 @@ def classify_image(
         If no rock stands out from the ground.
     """
     config = config or ClassifyConfig()
-    _, rocks = measure_rocks(
+    seg, rocks = measure_rocks(
         pixels, library.face_config.n_angles, config.segment, all_rocks=all_rocks, scale=scale
     )
+    scores = _contrast_scores(pixels, seg)
     return [
-        RockResult(index=i, outline=outline, radii=radii, match=match_radii(radii, library, config.match))
+        RockResult(
+            index=i,
+            outline=outline,
+            radii=radii,
+            match=match_radii(radii, library, config.match),
+            contrast_score=scores[i],
+            px_per_mm=config.px_per_mm,
+        )
         for i, (outline, radii) in enumerate(rocks)
     ]
+
+
+def _contrast_scores(pixels: NDArray[np.generic], seg: Segmentation) -> list[float]:
+    """Each rock's :func:`rockscan.measure.contrast_score`, on the photo at working size."""
+    import cv2
+
+    from rockscan.measure import contrast_score
+
+    arr = np.asarray(pixels)
+    if arr.dtype not in (np.uint8, np.uint16, np.float32, np.float64):
+        arr = arr.astype(np.float32)
+    rows, cols = seg.labels.shape
+    # The working image covers the photo's first rows * scale rows (and so for columns).
+    covered = arr[: round(rows * seg.scale_rowcol[0]), : round(cols * seg.scale_rowcol[1])]
+    work = cv2.resize(covered, (cols, rows), interpolation=cv2.INTER_AREA).astype(np.float32)
+    return [contrast_score(work, seg.labels == k + 1) for k in range(seg.n_rocks)]
 
 
 def classify_path(

@@ -9,15 +9,18 @@ from hypothesis import given
 from hypothesis import strategies as st
 from PIL import Image
 
-from rockscan.errors import NoRockFoundError
+from rockscan.errors import NoRockFoundError, ParameterError
 from rockscan.io import default_spec_path, read_spec
 from rockscan.library import shape_radii
+from rockscan.outline import polygon_area_centroid
 from rockscan.pipeline import ClassifyConfig, align_radii, classify_image, classify_path, measure_rocks
 from rockscan.render import RenderConfig, render_photo
 from rockscan.segment import SegmentConfig
 
 SPECS = {s.name: s.params for s in read_spec(default_spec_path())}
 INTERFACE_KEYS = {"match", "nearest", "mscore", "distance", "angle_deg", "interesting", "centroid"}
+ROCK_KEYS = INTERFACE_KEYS | {"outline", "area_px", "segmentation_score"}
+MM_KEYS = {"area_mm2", "equivalent_diameter_mm", "major_axis_mm", "minor_axis_mm"}
 
 
 def angle_error(found: float, truth: float, symmetry: int) -> float:
@@ -48,7 +51,8 @@ def test_records_hold_the_interface_keys(tmp_path, default_lib):
     result = classify_path(path, default_lib)
     assert result.ok and result.error is None and len(result.rocks) == 1
     (record,) = result.records()
-    assert INTERFACE_KEYS <= set(record) and record["path"] == str(path)
+    assert ROCK_KEYS <= set(record) and record["path"] == str(path)
+    assert not MM_KEYS & set(record)
     assert record["nearest"] == "egg" and isinstance(record["interesting"], bool)
     assert isinstance(record["centroid"], list) and len(record["centroid"]) == 2
     assert record["index"] == 0 and record["area_px"] > 0
@@ -107,6 +111,102 @@ def test_align_radii_turns_every_row_to_the_first():
     aligned = align_radii(rows)
     np.testing.assert_allclose(aligned[1], radii, rtol=1e-12)
     np.testing.assert_allclose(aligned[2], 3.0 * radii, rtol=1e-12)
+
+
+# ---------------------------------------------------------------- outlines and sizes
+
+
+def screen_signed_area(xy):
+    """Shoelace area with y up (as on screen): positive for counter-clockwise."""
+    x, y = np.asarray(xy, dtype=float).T
+    y = -y
+    return 0.5 * np.sum(x * np.roll(y, -1) - np.roll(x, -1) * y)
+
+
+def distance_to_polygon(points, polygon):
+    """Each point's distance from the closed polygon's edges."""
+    start = polygon[None, :, :]
+    edge = np.roll(polygon, -1, axis=0)[None, :, :] - start
+    rel = points[:, None, :] - start
+    t = np.clip((rel * edge).sum(-1) / np.maximum((edge * edge).sum(-1), 1e-12), 0.0, 1.0)
+    return np.min(np.hypot(*(rel - t[..., None] * edge).transpose(2, 0, 1)), axis=1)
+
+
+@pytest.mark.parametrize("name", ["teardrop", "five-armed-star", "shard", "egg"])
+@pytest.mark.parametrize("size", [(240, 320), (1200, 1600)])
+def test_the_reported_outline_has_the_rocks_area_and_centroid(default_lib, name, size):
+    photo = render_photo(SPECS[name], RenderConfig(rows=size[0], cols=size[1]), rng=3, name=name)
+    rock = classify_image(photo.pixels, default_lib)[0]
+    record = rock.to_dict()
+    outline = np.array(record["outline"])
+    assert outline.ndim == 2 and outline.shape[1] == 2 and 64 <= len(outline) <= 400
+    assert not np.allclose(outline[0], outline[-1])  # closed implicitly
+    area, centroid = polygon_area_centroid(outline)
+    assert area == pytest.approx(record["area_px"], rel=0.02)
+    assert np.hypot(*(centroid - record["centroid"])) < 1.0
+    assert screen_signed_area(outline) > 0
+    # Every reported vertex lies on the traced outline, within a quarter of its vertex spacing
+    # (about a quarter of a working pixel), to the 0.01 px of the report.
+    traced = rock.outline.contour_rowcol[:, ::-1]
+    spacing = np.median(np.hypot(*np.diff(traced, axis=0).T))
+    assert distance_to_polygon(outline, traced).max() < 0.25 * spacing + 0.01
+    assert 0.0 <= record["segmentation_score"] <= 1.0
+
+
+def test_every_rock_of_a_scene_has_its_outline(default_lib):
+    from rockscan.render import render_scene
+
+    names = ["egg", "diamond", "pentagonal"]
+    scene = render_scene([SPECS[n] for n in names], RenderConfig(area_fraction=0.18), rng=8, names=names)
+    for rock in classify_image(scene.pixels, default_lib, all_rocks=True):
+        record = rock.to_dict()
+        area, centroid = polygon_area_centroid(record["outline"])
+        assert area == pytest.approx(record["area_px"], rel=0.02)
+        assert np.hypot(*(centroid - record["centroid"])) < 1.0
+        assert screen_signed_area(record["outline"]) > 0
+
+
+def ellipse_photo(rows, cols, center_xy, a, b, angle_deg, supersample=4):
+    """An anti-aliased ellipse (semi-axes a, b px, major axis turned angle_deg CCW on screen)."""
+    r = (np.arange(rows * supersample) + 0.5) / supersample - 0.5
+    c = (np.arange(cols * supersample) + 0.5) / supersample - 0.5
+    rr, cc = np.meshgrid(r, c, indexing="ij")
+    x, y = cc - center_xy[0], center_xy[1] - rr
+    t = np.deg2rad(angle_deg)
+    u, v = x * np.cos(t) + y * np.sin(t), -x * np.sin(t) + y * np.cos(t)
+    inside = (u / a) ** 2 + (v / b) ** 2 <= 1.0
+    coverage = inside.reshape(rows, supersample, cols, supersample).mean(axis=(1, 3))
+    return (0.25 + 0.5 * coverage).astype(np.float32)
+
+
+@pytest.mark.parametrize(("a", "b", "angle"), [(60.0, 60.0, 0.0), (80.0, 40.0, 30.0), (100.0, 35.0, -70.0)])
+def test_sizes_in_millimetres_are_those_of_a_drawn_ellipse(default_lib, a, b, angle):
+    px_per_mm = 4.0
+    pixels = ellipse_photo(300, 400, (210.3, 140.7), a, b, angle)
+    (rock,) = classify_image(pixels, default_lib, ClassifyConfig(px_per_mm=px_per_mm))
+    record = rock.to_dict()
+    assert record["area_mm2"] == pytest.approx(np.pi * a * b / px_per_mm**2, rel=0.005)
+    assert record["area_mm2"] == pytest.approx(record["area_px"] / px_per_mm**2, rel=1e-4)
+    assert record["equivalent_diameter_mm"] == pytest.approx(2 * np.sqrt(a * b) / px_per_mm, rel=0.005)
+    assert record["major_axis_mm"] == pytest.approx(2 * a / px_per_mm, rel=0.005)
+    assert record["minor_axis_mm"] == pytest.approx(2 * b / px_per_mm, rel=0.005)
+    np.testing.assert_allclose(record["centroid"], (210.3, 140.7), atol=0.05)
+
+
+@pytest.mark.parametrize("bad", [0, -2.0, float("nan"), float("inf"), "3", True])
+def test_px_per_mm_must_be_a_positive_number(bad):
+    with pytest.raises(ParameterError, match="px_per_mm must be a positive number"):
+        ClassifyConfig(px_per_mm=bad)
+
+
+def test_a_faint_rock_scores_lower_than_a_clear_one(default_lib):
+    def score(contrast):
+        settings = RenderConfig(rows=240, cols=320, contrast=contrast, noise=0.03, rock_lighter=True)
+        photo = render_photo(SPECS["egg"], settings, rng=11)
+        return classify_image(photo.pixels, default_lib)[0].to_dict()["segmentation_score"]
+
+    faint, clear = score(0.08), score(0.5)
+    assert 0.0 <= faint < clear <= 1.0 and clear > 0.8
 
 
 # ---------------------------------------------------------------- invariance
