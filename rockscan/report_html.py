@@ -50,7 +50,10 @@ def _asset(name: str) -> str:
 
 
 def _number(value: Any) -> str:
-    return "" if value is None or (isinstance(value, float) and not math.isfinite(value)) else repr(value)
+    # Six digits sort and filter the page; the report's files keep every digit.
+    if value is None or (isinstance(value, float) and not math.isfinite(value)):
+        return ""
+    return f"{value:.6g}"
 
 
 def _esc(text: str) -> str:
@@ -96,9 +99,9 @@ def _card(row: dict[str, Any], report: Path | None) -> str:
     )
     badges = []
     if row.get("interesting"):
-        badges.append('<span class="badge interesting" title="passed the cutoffs">interesting</span>')
+        badges.append('<span class="badge interesting">interesting</span>')
     if row.get("novel"):
-        badges.append('<span class="badge novel" title="unlike every shape seen before">novel</span>')
+        badges.append('<span class="badge novel">novel</span>')
     if low_seg:
         badges.append(
             f'<span class="badge lowseg" title="segmentation score {seg:.2f}: the outline may be wrong">'
@@ -125,9 +128,9 @@ def _card(row: dict[str, Any], report: Path | None) -> str:
             )
         text = "<br>".join(parts)
     return (
-        f'<figure class="card" {data}><a class="photo" href="{href}" title="open the photo">{image}</a>'
+        f'<figure class="card" {data}><a class="photo" href="{href}">{image}</a>'
         f'<div class="badges">{"".join(badges)}</div><figcaption>{text}'
-        f'<span class="path"><a href="{href}">{_esc(path)}</a></span></figcaption></figure>\n'
+        f'<span class="path">{_esc(path)}</span></figcaption></figure>\n'
     )
 
 

@@ -136,7 +136,7 @@ class TriageConfig:
     overwrite: bool = False
     novelty: NoveltyConfig = field(default_factory=NoveltyConfig)
     html_limit: int = 2000
-    thumbnail_size: int = 160
+    thumbnail_size: int = 144
     refresh_s: float = 30.0
     window: int | None = None
     connect_timeout_s: float = 30.0
@@ -317,7 +317,7 @@ class PhotoOutcome:
     radii : (n_angles,) ndarray of float or None
         The rock's radii (for novelty); None for an error.
     thumbnail : str or None
-        A JPEG data URI of the photo with outline and matched shape drawn, when asked for.
+        A data URI of a small picture of the photo with outline and matched shape drawn, when asked for.
     more : tuple of PhotoOutcome
         The photo's other rocks, with ``all_rocks`` (index 1, 2, ...).
     """
@@ -389,9 +389,9 @@ def _thumbnails_or_none(
         return [None] * len(rocks)
 
 
-def thumbnail_data_uri(path: str, rock: RockResult | None, library: Library, size: int = 160) -> str:
-    """A small JPEG of a photo with the rock's outline and the matched library
-    shape (turned by the found angle) drawn on it.
+def thumbnail_data_uri(path: str, rock: RockResult | None, library: Library, size: int = 144) -> str:
+    """A small WebP (or JPEG) of a photo with the rock's outline and the matched
+    library shape (turned by the found angle) drawn on it.
 
     Parameters
     ----------
@@ -406,7 +406,7 @@ def thumbnail_data_uri(path: str, rock: RockResult | None, library: Library, siz
     Returns
     -------
     str
-        ``data:image/jpeg;base64,...``
+        ``data:image/webp;base64,...`` (JPEG where Pillow has no WebP).
 
     Raises
     ------
@@ -416,20 +416,22 @@ def thumbnail_data_uri(path: str, rock: RockResult | None, library: Library, siz
     return thumbnail_data_uris(path, (rock,), library, size)[0]
 
 
-#: JPEG quality of thumbnails: about 5 kB each at 160 pixels (a 2,000-rock sheet
-#: stays under 10 MB; scripts/bench_report_size.py measures it).
-THUMBNAIL_QUALITY = 70
+#: WebP quality of thumbnails: about 3 kB each at 144 pixels on textured ground,
+#: half a JPEG's (a 2,000-rock sheet stays under 10 MB; scripts/bench_report_size.py
+#: measures it).
+THUMBNAIL_QUALITY = 50
 
 
 def thumbnail_data_uris(
-    path: str, rocks: tuple[RockResult | None, ...], library: Library, size: int = 160
+    path: str, rocks: tuple[RockResult | None, ...], library: Library, size: int = 144
 ) -> list[str]:
     """Thumbnails of one photo, one per rock (the photo is read once).
 
     The outline is drawn in :data:`rockscan.report_html.OUTLINE_RGB` (yellow)
     over the matched shape in :data:`rockscan.report_html.SHAPE_RGB` (blue),
-    wider, so that both show where they agree; the JPEG keeps full colour
-    resolution (4:4:4) so thin lines keep their colour.
+    wider, so that both show where they agree. WebP halves colour resolution;
+    its sharp colour conversion and the lines' wide gap in lightness keep them
+    apart (tests/test_report_html.py measures it).
 
     Parameters
     ----------
@@ -441,7 +443,7 @@ def thumbnail_data_uris(
     Returns
     -------
     list of str
-        ``data:image/jpeg;base64,...``, one per rock.
+        Data URIs, one per rock.
 
     Raises
     ------
@@ -449,7 +451,7 @@ def thumbnail_data_uris(
         If the photo cannot be read.
     """
     import cv2
-    from PIL import Image
+    from PIL import Image, features
 
     from rockscan.io import read_image
     from rockscan.plot import library_outline_rowcol
@@ -470,18 +472,24 @@ def thumbnail_data_uris(
         row = (rowcol[:, 0] + 0.5) / per_row - 0.5
         return np.round(np.column_stack([col, row]) * 16).astype(np.int32)
 
+    webp = features.check("webp")
     out = []
     for rock in rocks:
         thumb = base.copy()
         if rock is not None:
             matched = points(library_outline_rowcol(library, rock))
-            cv2.polylines(thumb, [matched], True, SHAPE_RGB, 2, cv2.LINE_AA, 4)
-            cv2.polylines(thumb, [points(rock.outline.contour_rowcol)], True, OUTLINE_RGB, 1, cv2.LINE_AA, 4)
+            # Two pixels at least: WebP keeps colour at half resolution.
+            cv2.polylines(thumb, [matched], True, SHAPE_RGB, 3, cv2.LINE_AA, 4)
+            cv2.polylines(thumb, [points(rock.outline.contour_rowcol)], True, OUTLINE_RGB, 2, cv2.LINE_AA, 4)
             ((cx, cy),) = points(rock.outline.centroid_rowcol[None, :]) // 16
-            cv2.drawMarker(thumb, (int(cx), int(cy)), SHAPE_RGB, cv2.MARKER_CROSS, 7, 1)
+            cv2.drawMarker(thumb, (int(cx), int(cy)), SHAPE_RGB, cv2.MARKER_CROSS, 8, 2)
         buf = io.BytesIO()
-        Image.fromarray(thumb).save(buf, format="JPEG", quality=THUMBNAIL_QUALITY, subsampling=0)
-        out.append("data:image/jpeg;base64," + base64.b64encode(buf.getvalue()).decode("ascii"))
+        if webp:
+            Image.fromarray(thumb).save(buf, format="WEBP", quality=THUMBNAIL_QUALITY, use_sharp_yuv=True)
+        else:
+            Image.fromarray(thumb).save(buf, format="JPEG", quality=THUMBNAIL_QUALITY, subsampling=0)
+        kind = "webp" if webp else "jpeg"
+        out.append(f"data:image/{kind};base64," + base64.b64encode(buf.getvalue()).decode("ascii"))
     return out
 
 

@@ -73,6 +73,15 @@ from rockscan.cli import _errors, _fail, _library_option, _load_library, _match_
     "interest; 0: novelty does not change the ranking).",
 )
 @click.option(
+    "--px-per-mm",
+    "px_per_mm",
+    type=click.FloatRange(min=0, min_open=True),
+    default=None,
+    metavar="F",
+    help="Photo pixels per millimetre: every row also gets area_mm2, equivalent_diameter_mm, "
+    "major_axis_mm and minor_axis_mm.",
+)
+@click.option(
     "--all",
     "all_rocks",
     is_flag=True,
@@ -102,6 +111,7 @@ def triage(
     novelty_threshold: float | None,
     novelty_metric: str,
     novelty_weight: float | None,
+    px_per_mm: float | None,
     all_rocks: bool,
     html_limit: int,
     quiet: bool,
@@ -142,7 +152,7 @@ def triage(
             raise click.BadParameter(str(exc), param_hint="-o/--output") from None
     lib = _load_library(library_path)
     config = TriageConfig(
-        classify=ClassifyConfig(match=match_config),
+        classify=ClassifyConfig(match=match_config, px_per_mm=px_per_mm),
         workers=workers,
         scheduler=scheduler,
         resume=resume,
