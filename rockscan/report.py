@@ -25,7 +25,7 @@ The final ranking streams: the journal is read in chunks of sort keys, each
 chunk sorted and spilled to a temporary file, and the chunks merged
 (:func:`heapq.merge`); besides a chunk, memory holds 9 bytes per row (a
 64-bit hash of each rock's identity, to keep the first row of each, and
-whether it is an error).
+whether it is an error), about 50 for a moment while duplicates are looked for.
 
 This module knows rows and files only; :mod:`rockscan.triage` makes the rows.
 """

@@ -202,7 +202,7 @@ def sheet_writer(
         ``close()`` ends the page.
     """
     n_ranked = n_rows - n_errors
-    notes = [f"{n_rows} rocks: {n_ranked} ranked, {n_errors} errors."]
+    notes = [f"{n_rows} rocks: {n_ranked} ranked, {n_errors} error{'' if n_errors == 1 else 's'}."]
     if n_ranked > limit or n_errors > limit:
         notes.append(f"This page shows the best {limit} and at most {limit} errors.")
     if journal_name:
