@@ -1,30 +1,49 @@
-"""Triage reports: CSV, JSON lines or HTML, written a row at a time and ranked at the end.
+"""Triage reports: CSV, JSON lines, HTML or GeoJSON, written a row at a time and ranked at the end.
 
-A report is first a *journal*: every photo's row is appended and flushed as
-soon as it is known, so a run that is killed leaves every finished row behind,
-complete, and a run started again with ``resume`` skips them. When the run
-ends the journal is ranked (:func:`rank_key`) and rewritten in place
+A report is first a *journal*: every photo's rows are appended and flushed as
+soon as they are known, so a run that is killed leaves every finished row
+behind, complete, and a run started again with ``resume`` skips them. When the
+run ends the journal is ranked (:func:`rank_key`) and rewritten in place
 atomically (a temporary file renamed over it).
 
 * ``.csv`` and ``.jsonl`` (or ``.ndjson``) reports are their own journal.
-* An ``.html`` report keeps its journal beside it, ``REPORT.jsonl`` (the same
-  rows as a JSON lines report, plus each photo's thumbnail as a data URI). The
-  page is a contact sheet of the best ``limit`` rows and the errors, built from
-  the journal when the run ends (and from time to time during it); the
-  journal keeps every row.
+* An ``.html`` or ``.geojson`` report keeps its journal beside it,
+  ``REPORT.jsonl`` (the same rows as a JSON lines report, plus each rock's
+  thumbnail for a sheet). The page (:mod:`rockscan.report_html`) or the
+  FeatureCollection (:mod:`rockscan.geojson`) is built from the journal when
+  the run ends.
+
+Every report records how it was made, its *provenance* (rockscan version,
+library content hash, matcher settings and cutoffs, every option that changes
+a row): the first line of a journal (``{"rockscan_report": {...}}`` in JSON
+lines, ``# rockscan_report {...}`` above a CSV's column names), the footer of
+a sheet, the ``rockscan_report`` member of a FeatureCollection. A journal
+never mixes rows made with different settings: resuming with other settings
+is refused (:class:`ReportSettingsError`) before the file is touched.
+
+The final ranking streams: the journal is read in chunks of sort keys, each
+chunk sorted and spilled to a temporary file, and the chunks merged
+(:func:`heapq.merge`); besides a chunk, memory holds 9 bytes per row (a
+64-bit hash of each rock's identity, to keep the first row of each, and
+whether it is an error), about 50 for a moment while duplicates are looked for.
 
 This module knows rows and files only; :mod:`rockscan.triage` makes the rows.
 """
 
 from __future__ import annotations
 
+import array
+import contextlib
 import csv
-import html
+import errno
+import hashlib
+import heapq
 import io
 import json
 import math
 import os
-from collections.abc import Iterable, Iterator
+import tempfile
+from collections.abc import Generator, Iterable, Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, BinaryIO
@@ -36,22 +55,36 @@ __all__ = [
     "REPORT_FORMATS",
     "ROW_KEYS",
     "RankedReport",
+    "ReportBusyError",
     "ReportJournal",
+    "ReportSettingsError",
     "finalize_report",
     "journal_path",
+    "lock_report",
     "photo_key",
     "rank_key",
+    "read_provenance",
     "read_rows",
-    "render_html",
+    "refresh_html",
     "report_format",
-    "write_html",
 ]
 
 #: Report file endings and their formats.
-REPORT_FORMATS = {".csv": "csv", ".jsonl": "jsonl", ".ndjson": "jsonl", ".html": "html", ".htm": "html"}
+REPORT_FORMATS = {
+    ".csv": "csv",
+    ".jsonl": "jsonl",
+    ".ndjson": "jsonl",
+    ".html": "html",
+    ".htm": "html",
+    ".geojson": "geojson",
+}
+#: Formats whose rows live in a journal beside the report.
+_SIDE_JOURNAL = {"html", "geojson"}
 
-#: Keys of a report row, in order. ``match`` ... ``area_px`` are exactly the
-#: keys and values of ``rockscan classify --json`` for the photo's main rock.
+#: Keys of every report row, in order. ``match`` ... ``minor_axis_mm`` are the
+#: keys and values of ``rockscan classify --json`` for the rock (None where
+#: classify leaves a key out). A JSON row also keeps any other key of the
+#: classify record (``outline``); a CSV has these columns only.
 ROW_KEYS = (
     "rank",
     "path",
@@ -71,6 +104,11 @@ ROW_KEYS = (
     "centroid",
     "index",
     "area_px",
+    "segmentation_score",
+    "area_mm2",
+    "equivalent_diameter_mm",
+    "major_axis_mm",
+    "minor_axis_mm",
     "error",
 )
 
@@ -87,17 +125,36 @@ _FLOATS = {
     "novelty",
     "residual",
     "area_px",
+    "segmentation_score",
+    "area_mm2",
+    "equivalent_diameter_mm",
+    "major_axis_mm",
+    "minor_axis_mm",
     "centroid_x",
     "centroid_y",
 }
 _INTS = {"rank", "symmetry", "index"}
 _BOOLS = {"interesting", "novel"}
+_STRINGS = {"match", "nearest", "nearest_observed", "error"}
 #: Journal-only key of HTML reports: the thumbnail as a data URI.
 THUMBNAIL_KEY = "thumbnail"
+#: The key of a journal's first line that holds the provenance.
+PROVENANCE_KEY = "rockscan_report"
+_CSV_PROVENANCE = "# " + PROVENANCE_KEY + " "
+#: Sort keys held in memory at once while ranking; more are spilled to disk.
+CHUNK_ROWS = 100_000
+
+
+class ReportSettingsError(ParameterError):
+    """A report was made with other settings than the run that would continue it."""
+
+
+class ReportBusyError(ParameterError):
+    """Another run is writing the report."""
 
 
 def report_format(path: str | os.PathLike[str]) -> str:
-    """The format of a report file from its ending: ``"csv"``, ``"jsonl"`` or ``"html"``.
+    """The format of a report file from its ending: ``"csv"``, ``"jsonl"``, ``"html"`` or ``"geojson"``.
 
     Parameters
     ----------
@@ -111,16 +168,17 @@ def report_format(path: str | os.PathLike[str]) -> str:
     suffix = Path(path).suffix.lower()
     if suffix not in REPORT_FORMATS:
         raise ParameterError(
-            f"{path}: a report must end in .csv, .jsonl (JSON lines) or .html, not {suffix or 'nothing'!r}"
+            f"{path}: a report must end in .csv, .jsonl (JSON lines), .html or .geojson, "
+            f"not {suffix or 'nothing'!r}"
         )
     return REPORT_FORMATS[suffix]
 
 
 def journal_path(path: str | os.PathLike[str]) -> Path:
     """Where a report's rows are appended while it runs: the report itself, or
-    ``REPORT.jsonl`` beside an HTML report."""
+    ``REPORT.jsonl`` beside an HTML or GeoJSON report."""
     path = Path(path)
-    return path.with_name(path.name + ".jsonl") if report_format(path) == "html" else path
+    return path.with_name(path.name + ".jsonl") if report_format(path) in _SIDE_JOURNAL else path
 
 
 def photo_key(path: str) -> str:
@@ -129,12 +187,27 @@ def photo_key(path: str) -> str:
     return os.path.normcase(os.path.abspath(path))
 
 
-def rank_key(row: dict[str, Any]) -> tuple[int, float, float, str]:
-    """Sort key of a row: photos by decreasing interest, then decreasing MScore,
-    then path; error rows last, by path."""
+def rank_key(row: dict[str, Any]) -> tuple[int, float, float, str, int]:
+    """Sort key of a row: rocks by decreasing interest, then decreasing MScore,
+    then path, then rock index; error rows last, by path."""
+    index = row.get("index") or 0
     if row.get("error") is not None:
-        return (1, 0.0, 0.0, row["path"])
-    return (0, -float(row["interest"]), -float(row["mscore"]), row["path"])
+        return (1, 0.0, 0.0, row["path"], index)
+    return (0, -float(row["interest"]), -float(row["mscore"]), row["path"], index)
+
+
+def _rock_hash(row: dict[str, Any]) -> int:
+    key = f"{photo_key(row['path'])}\0{row.get('index') or 0}".encode("utf-8", "surrogateescape")
+    return int.from_bytes(hashlib.blake2b(key, digest_size=8).digest(), "little", signed=True)
+
+
+def shown_text(text: str) -> str:
+    """A path or message made safe to print or to put in a page: bytes that
+    are not UTF-8 become U+FFFD, control characters their escapes."""
+    text = text.encode("utf-8", "surrogateescape").decode("utf-8", "replace")
+    if text.isprintable():
+        return text
+    return "".join(c if c.isprintable() else repr(c)[1:-1] for c in text)
 
 
 # ---------------------------------------------------------------- encoding
@@ -143,9 +216,16 @@ def rank_key(row: dict[str, Any]) -> tuple[int, float, float, str]:
 def _encode(row: dict[str, Any], fmt: str) -> bytes:
     if fmt == "csv":
         buf = io.StringIO()
-        csv.writer(buf, lineterminator="\n").writerow([_csv_cell(v) for v in _csv_values(row)])
-        return buf.getvalue().encode("utf-8")
-    return (json.dumps(row, ensure_ascii=False) + "\n").encode("utf-8")
+        # CRLF endings make the writer quote a carriage return inside a name.
+        csv.writer(buf, lineterminator="\r\n").writerow([_csv_cell(v) for v in _csv_values(row)])
+        # A name that is not UTF-8 keeps its own bytes.
+        return buf.getvalue().encode("utf-8", "surrogateescape")
+    text = json.dumps(row, ensure_ascii=False, allow_nan=False)
+    try:
+        return (text + "\n").encode("utf-8")
+    except UnicodeEncodeError:
+        # A name that is not UTF-8: \udcXX escapes, read back as the same name.
+        return (json.dumps(row, allow_nan=False) + "\n").encode("ascii")
 
 
 def _csv_values(row: dict[str, Any]) -> list[Any]:
@@ -170,26 +250,30 @@ def _csv_cell(value: Any) -> str:
     return str(value)
 
 
-def _decode(record: bytes, fmt: str, source: Path) -> dict[str, Any]:
-    text = record.decode("utf-8", errors="replace")
+def _decode(record: bytes, fmt: str, source: Path, number: int = 0) -> dict[str, Any]:
+    text = record.decode("utf-8", "surrogateescape")
+    where = f"{source}: row {number}" if number else f"{source}"
     if fmt != "csv":
         try:
             row = json.loads(text)
         except json.JSONDecodeError:
-            raise ParameterError(f"{source}: a line is not JSON; is this a rockscan triage report?") from None
+            raise ParameterError(f"{where} is not JSON; is this a rockscan triage report?") from None
         if not isinstance(row, dict) or not isinstance(row.get("path"), str):
-            raise ParameterError(f"{source}: a line has no photo path; is this a rockscan triage report?")
+            raise ParameterError(f"{where} has no photo path; is this a rockscan triage report?")
+        _check_row(row, where)
         return row
-    (cells,) = list(csv.reader([text]))
+    cells = next(csv.reader(io.StringIO(text, newline="")), [])
     if len(cells) != len(CSV_COLUMNS):
-        raise ParameterError(f"{source}: a row has {len(cells)} columns, not {len(CSV_COLUMNS)}")
-    flat = {key: _parse_cell(key, cell, source) for key, cell in zip(CSV_COLUMNS, cells, strict=True)}
+        raise ParameterError(f"{where} has {len(cells)} columns, not {len(CSV_COLUMNS)}")
+    flat = {key: _parse_cell(key, cell, where) for key, cell in zip(CSV_COLUMNS, cells, strict=True)}
     cx, cy = flat.pop("centroid_x"), flat.pop("centroid_y")
     flat["centroid"] = None if cx is None else [cx, cy]
-    return {key: flat[key] for key in ROW_KEYS}
+    row = {key: flat[key] for key in ROW_KEYS}
+    _check_row(row, where)
+    return row
 
 
-def _parse_cell(key: str, cell: str, source: Path) -> Any:
+def _parse_cell(key: str, cell: str, where: str) -> Any:
     if cell == "":
         return None
     try:
@@ -198,10 +282,44 @@ def _parse_cell(key: str, cell: str, source: Path) -> Any:
         if key in _INTS:
             return int(cell)
     except ValueError:
-        raise ParameterError(f"{source}: column {key} holds {cell!r}, not a number") from None
+        raise ParameterError(f"{where}: {key} holds {cell!r}, not a number; was it edited?") from None
     if key in _BOOLS:
+        if cell not in ("true", "false"):
+            raise ParameterError(f"{where}: {key} holds {cell!r}, not true or false; was it edited?")
         return cell == "true"
     return cell
+
+
+def _check_row(row: dict[str, Any], where: str) -> None:
+    """Every known key holds its type (a hand-edited journal fails here, clearly)."""
+
+    def bad(key: str, kind: str) -> ParameterError:
+        return ParameterError(f"{where}: {key} holds {row[key]!r}, not {kind}; was it edited?")
+
+    for key, value in row.items():
+        if value is None:
+            continue
+        if key in _FLOATS:
+            if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
+                raise bad(key, "a number")
+        elif key in _INTS:
+            if isinstance(value, bool) or not isinstance(value, int):
+                raise bad(key, "a whole number")
+        elif key in _BOOLS:
+            if not isinstance(value, bool):
+                raise bad(key, "true or false")
+        elif key in _STRINGS:
+            if not isinstance(value, str):
+                raise bad(key, "text")
+        elif key == "centroid":
+            if not (
+                isinstance(value, list)
+                and len(value) == 2
+                and all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in value)
+            ):
+                raise bad(key, "[x, y]")
+    if row.get("error") is None and (row.get("interest") is None or row.get("mscore") is None):
+        raise ParameterError(f"{where}: a rock without interest or MScore; was it edited?")
 
 
 def _records(fh: BinaryIO, fmt: str) -> Iterator[tuple[int, bytes]]:
@@ -228,7 +346,98 @@ def _records(fh: BinaryIO, fmt: str) -> Iterator[tuple[int, bytes]]:
         pending = b""
 
 
+# ---------------------------------------------------------------- provenance header
+
+
+def _header(provenance: dict[str, Any] | None, fmt: str) -> bytes:
+    text = json.dumps(provenance, sort_keys=True, separators=(",", ":"), allow_nan=False)
+    if fmt == "csv":
+        head = (_CSV_PROVENANCE + text + "\r\n") if provenance is not None else ""
+        return (head + ",".join(CSV_COLUMNS) + "\r\n").encode("utf-8")
+    if provenance is None:
+        return b""
+    return (json.dumps({PROVENANCE_KEY: provenance}, sort_keys=True, allow_nan=False) + "\n").encode("utf-8")
+
+
+def _read_header(fh: BinaryIO, fmt: str, source: Path) -> dict[str, Any] | None:
+    """Read a journal's provenance and column lines; the file is left at its first row.
+
+    Returns None for a journal that records no provenance (made by an older
+    rockscan, or still empty)."""
+    start = fh.tell()
+    first = fh.readline()
+    provenance = None
+    if fmt == "csv":
+        if first.startswith(_CSV_PROVENANCE.encode()):
+            provenance = _parse_provenance(first[len(_CSV_PROVENANCE) :], source)
+            first = fh.readline()
+        if first.decode("utf-8", "replace").strip() != ",".join(CSV_COLUMNS):
+            raise ParameterError(
+                f"{source}: not a rockscan triage report (its first lines are not the report's header)"
+            )
+        return provenance
+    if first.startswith(b'{"' + PROVENANCE_KEY.encode() + b'"') and first.endswith(b"\n"):
+        return _parse_provenance(first, source, wrapped=True)
+    fh.seek(start)
+    return None
+
+
+def _parse_provenance(data: bytes, source: Path, *, wrapped: bool = False) -> dict[str, Any]:
+    try:
+        value = json.loads(data.decode("utf-8"))
+        if wrapped:
+            value = value[PROVENANCE_KEY]
+    except (ValueError, KeyError, TypeError):
+        value = None
+    if not isinstance(value, dict):
+        raise ParameterError(f"{source}: the report's header line is damaged; start again with --overwrite")
+    return value
+
+
+def read_provenance(path: str | os.PathLike[str]) -> dict[str, Any] | None:
+    """How a report was made (see :mod:`rockscan.report`), or None if it does not say.
+
+    Raises
+    ------
+    ParameterError
+        If the report is missing or not a triage report.
+    """
+    fmt, source = _journal_format(path)
+    with _open_journal(source) as fh:
+        return _read_header(fh, fmt, source)
+
+
+def _differences(old: Any, new: Any, prefix: str = "") -> list[str]:
+    if isinstance(old, dict) and isinstance(new, dict):
+        out = []
+        for key in sorted(set(old) | set(new)):
+            out += _differences(old.get(key), new.get(key), f"{prefix}{key}.")
+        return out
+    if old != new:
+        return [f"{prefix.rstrip('.')} {_short(old)} (report) vs {_short(new)} (now)"]
+    return []
+
+
+def _short(value: Any) -> str:
+    text = json.dumps(value)
+    return text if len(text) <= 24 else text[:12] + "..." + text[-6:]
+
+
 # ---------------------------------------------------------------- reading
+
+
+def _journal_format(path: str | os.PathLike[str]) -> tuple[str, Path]:
+    fmt = "csv" if report_format(path) == "csv" else "jsonl"
+    return fmt, journal_path(path)
+
+
+def _open_journal(source: Path) -> BinaryIO:
+    try:
+        return open(source, "rb")
+    except FileNotFoundError:
+        raise ParameterError(f"{source}: report not found") from None
+    except OSError as exc:
+        raise ParameterError(f"{source}: cannot read report ({exc.strerror or exc})") from None
 
 
 def read_rows(path: str | os.PathLike[str]) -> Iterator[dict[str, Any]]:
@@ -237,8 +446,8 @@ def read_rows(path: str | os.PathLike[str]) -> Iterator[dict[str, Any]]:
     Parameters
     ----------
     path : path-like
-        A ``.csv``, ``.jsonl`` or ``.html`` report (an HTML report's rows are
-        read from its journal ``REPORT.jsonl``).
+        A ``.csv``, ``.jsonl``, ``.html`` or ``.geojson`` report (the last two
+        are read from their journal ``REPORT.jsonl``).
 
     Yields
     ------
@@ -248,30 +457,67 @@ def read_rows(path: str | os.PathLike[str]) -> Iterator[dict[str, Any]]:
     Raises
     ------
     ParameterError
-        If the file is missing or not a triage report.
+        If the file is missing or not a triage report, or a row was damaged.
     """
-    path = Path(path)
-    fmt = "csv" if report_format(path) == "csv" else "jsonl"
-    source = journal_path(path)
+    fmt, source = _journal_format(path)
+    with _open_journal(source) as fh:
+        _read_header(fh, fmt, source)
+        for number, (_, record) in enumerate(_records(fh, fmt), 1):
+            yield _decode(record, fmt, source, number)
+
+
+# ---------------------------------------------------------------- the lock
+
+
+@contextlib.contextmanager
+def lock_report(path: str | os.PathLike[str]) -> Iterator[None]:
+    """Hold a report for one run: a second run on it is refused at once.
+
+    The lock is an advisory ``flock`` on ``.REPORT.lock`` beside the report,
+    released by the operating system when the process ends however it ends,
+    so a crash never leaves a stale lock. Where ``fcntl`` is missing (not
+    POSIX) nothing is locked.
+
+    Raises
+    ------
+    ReportBusyError
+        If another process holds the report.
+    """
     try:
-        fh = open(source, "rb")
-    except FileNotFoundError:
-        raise ParameterError(f"{source}: report not found") from None
-    except OSError as exc:
-        raise ParameterError(f"{source}: cannot read report ({exc.strerror or exc})") from None
-    with fh:
-        if fmt == "csv":
-            _check_header(fh, source)
-        for _, record in _records(fh, fmt):
-            yield _decode(record, fmt, source)
-
-
-def _check_header(fh: BinaryIO, source: Path) -> None:
-    header = fh.readline().decode("utf-8", errors="replace").strip()
-    if header != ",".join(CSV_COLUMNS):
-        raise ParameterError(
-            f"{source}: not a rockscan triage report (its first line is not the report's columns)"
-        )
+        import fcntl
+    except ImportError:  # pragma: no cover - not POSIX
+        yield
+        return
+    report = Path(path)
+    lock = report.with_name(f".{report.name}.lock")
+    while True:
+        try:
+            fd = os.open(lock, os.O_RDWR | os.O_CREAT, 0o644)
+        except OSError as exc:
+            raise ParameterError(f"{report}: cannot lock the report ({exc.strerror or exc})") from None
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except OSError as exc:
+            os.close(fd)
+            if exc.errno in (errno.EWOULDBLOCK, errno.EAGAIN, errno.EACCES):
+                raise ReportBusyError(
+                    f"{report}: another rockscan run is writing this report; wait for it to end"
+                ) from None
+            raise ParameterError(f"{report}: cannot lock the report ({exc.strerror or exc})") from None
+        # The holder before us may have removed the file it locked: lock the one on disk.
+        try:
+            same = os.path.samestat(os.fstat(fd), os.stat(lock))
+        except FileNotFoundError:
+            same = False
+        if same:
+            break
+        os.close(fd)
+    try:
+        yield
+    finally:
+        with contextlib.suppress(OSError):
+            os.unlink(lock)
+        os.close(fd)
 
 
 # ---------------------------------------------------------------- the journal
@@ -283,97 +529,124 @@ class ReportJournal:
     Parameters
     ----------
     path : path-like
-        The report (``.csv``, ``.jsonl`` or ``.html``).
+        The report (``.csv``, ``.jsonl``, ``.html`` or ``.geojson``).
     resume : bool
         Keep the rows of an earlier run and continue after them.
     overwrite : bool
         Start again even if the report exists.
+    provenance : dict, optional
+        How the rows are made (JSON-able). Recorded in a new report; a resumed
+        report must record the same.
 
     Attributes
     ----------
     done : set of str
         :func:`photo_key` of every photo already in the report.
     n_resumed : int
-        Rows kept from earlier runs.
+        Photos kept from earlier runs.
 
     Raises
     ------
+    ReportSettingsError
+        If ``resume`` meets a report made with other settings (the report is
+        left as it was).
     ParameterError
         If the report exists and neither ``resume`` nor ``overwrite`` is set,
         or it cannot be read or written.
     """
 
     def __init__(
-        self, path: str | os.PathLike[str], *, resume: bool = False, overwrite: bool = False
+        self,
+        path: str | os.PathLike[str],
+        *,
+        resume: bool = False,
+        overwrite: bool = False,
+        provenance: dict[str, Any] | None = None,
     ) -> None:
         self.report = Path(path)
         self.format = report_format(self.report)
         self.path = journal_path(self.report)
         self._fmt = "csv" if self.format == "csv" else "jsonl"
+        # The provenance as a JSON round trip gives it (tuples become lists).
+        self.provenance = None if provenance is None else json.loads(json.dumps(provenance))
         self.done: set[str] = set()
-        exists = self.path.exists() or (self.format == "html" and self.report.exists())
+        exists = self.path.exists() or (self.format in _SIDE_JOURNAL and self.report.exists())
         if exists and not (resume or overwrite):
             raise ParameterError(
                 f"{self.report} exists: add --resume to continue it, or --overwrite to start again"
             )
-        if resume and self.format == "html" and self.report.exists() and not self.path.exists():
+        if resume and self.format in _SIDE_JOURNAL and self.report.exists() and not self.path.exists():
             raise ParameterError(
                 f"{self.report}: cannot resume, its rows ({self.path.name}) are missing; use --overwrite"
             )
         if self.report.is_dir() or self.path.is_dir():
             raise ParameterError(f"{self.report}: is a folder; give a report file name")
         try:
-            if resume and self.path.exists():
-                self._reopen()
+            if resume and self.path.exists() and self.path.stat().st_size > 0:
+                end = self._scan()
+                if end < self.path.stat().st_size:
+                    # Drop a row cut short by a crash; its photo is done again.
+                    os.truncate(self.path, end)
             else:
-                self._fh = open(self.path, "wb")
-                if self._fmt == "csv":
-                    self._fh.write((",".join(CSV_COLUMNS) + "\n").encode("utf-8"))
-                    self._fh.flush()
+                with open(self.path, "wb") as fh:
+                    fh.write(_header(self.provenance, self._fmt))
+            # Unbuffered appends: each row reaches the file in one write, or not at all
+            # but a torn tail that the next resume drops.
+            self._fh = open(self.path, "ab", buffering=0)
         except OSError as exc:
             raise ParameterError(f"{self.path}: cannot write report ({exc.strerror or exc})") from None
         self.n_resumed = len(self.done)
 
-    def _reopen(self) -> None:
-        fh = open(self.path, "r+b")
-        end = 0
-        try:
-            if self._fmt == "csv":
-                if fh.read(1) == b"":
-                    fh.write((",".join(CSV_COLUMNS) + "\n").encode("utf-8"))
-                fh.seek(0)
-                _check_header(fh, self.path)
-                end = fh.tell()
-            for offset, record in _records(fh, self._fmt):
-                self.done.add(photo_key(_decode(record, self._fmt, self.path)["path"]))
+    def _scan(self) -> int:
+        """Check an earlier run's header and rows; the end of its last complete row."""
+        with open(self.path, "rb") as fh:
+            recorded = _read_header(fh, self._fmt, self.path)
+            if self.provenance is not None and recorded != self.provenance:
+                if recorded is None:
+                    why = "it does not record how it was made (an older rockscan wrote it)"
+                else:
+                    why = "; ".join(_differences(recorded, self.provenance))
+                raise ReportSettingsError(
+                    f"{self.report} was made with other settings ({why}); resume it with the same "
+                    "library and options, or write another report (-o) or start again (--overwrite)"
+                )
+            end = fh.tell()
+            for number, (offset, record) in enumerate(_records(fh, self._fmt), 1):
+                self.done.add(photo_key(_decode(record, self._fmt, self.path, number)["path"]))
                 end = offset + len(record)
-            # Drop a row cut short by a crash; it is done again.
-            fh.truncate(end)
-            fh.seek(end)
-        except BaseException:
-            fh.close()
-            raise
-        self._fh = fh
+        return end
 
-    def append(self, row: dict[str, Any]) -> None:
-        """Write one row and hand it to the operating system at once.
+    def append(self, row: dict[str, Any] | Iterable[dict[str, Any]]) -> None:
+        """Write one photo's row (or rows, one per rock) in a single write.
 
         Parameters
         ----------
-        row : dict
+        row : dict or iterable of dict
             Keys :data:`ROW_KEYS` (and ``thumbnail`` for an HTML report).
+
+        Raises
+        ------
+        ParameterError
+            If the file cannot take it (disk full, file size limit): the rows
+            written before stay readable and ``resume`` continues after them.
         """
-        data = _encode(row, self._fmt)
+        rows = [row] if isinstance(row, dict) else list(row)
+        data = b"".join(_encode(r, self._fmt) for r in rows)
         try:
-            self._fh.write(data)
-            self._fh.flush()
+            written = self._fh.write(data)
+            while written < len(data):
+                written += self._fh.write(data[written:])
         except OSError as exc:
-            raise ParameterError(f"{self.path}: cannot write report ({exc.strerror or exc})") from None
-        self.done.add(photo_key(row["path"]))
+            raise ParameterError(
+                f"{self.path}: cannot write report ({exc.strerror or exc}); the rows before are kept: "
+                "make room and run again with --resume"
+            ) from None
+        self.done.update(photo_key(r["path"]) for r in rows)
 
     def close(self) -> None:
         """Close the journal file."""
-        self._fh.close()
+        with contextlib.suppress(OSError):
+            self._fh.close()
 
     def __enter__(self) -> ReportJournal:
         return self
@@ -394,13 +667,15 @@ class RankedReport:
     path : Path
         The report.
     n_rows : int
-        Photos in it (each once).
+        Rows in it (each rock once).
     n_errors : int
         Error rows among them.
     top : tuple of dict
         The best ranked rows (without thumbnails), best first.
     errors : tuple of dict
         The first error rows, by path.
+    provenance : dict or None
+        How the report was made.
     """
 
     path: Path
@@ -408,40 +683,105 @@ class RankedReport:
     n_errors: int
     top: tuple[dict[str, Any], ...] = field(repr=False)
     errors: tuple[dict[str, Any], ...] = field(repr=False)
+    provenance: dict[str, Any] | None = field(default=None, repr=False)
 
 
-def _ranked(journal: Path, fmt: str) -> list[tuple[tuple[int, float, float, str], int, int]]:
-    """(rank key, offset, length) of every photo's first row in a journal, ranked."""
-    entries = []
-    seen: set[str] = set()
-    with open(journal, "rb") as fh:
-        if fmt == "csv":
-            _check_header(fh, journal)
-        for offset, record in _records(fh, fmt):
-            row = _decode(record, fmt, journal)
-            key = photo_key(row["path"])
-            if key in seen:
-                continue
-            seen.add(key)
-            entries.append((rank_key(row), offset, len(record)))
-    entries.sort()
-    return entries
+#: (rank key, ordinal, offset, length) of one row in a journal.
+_Entry = tuple[tuple[int, float, float, str, int], int, int, int]
 
 
-def _iter_ranked(
-    journal: Path, fmt: str, entries: list[tuple[tuple[int, float, float, str], int, int]]
-) -> Iterator[dict[str, Any]]:
+@dataclass
+class _Scan:
+    provenance: dict[str, Any] | None
+    n_rows: int
+    n_errors: int
+    drop: frozenset[int]
+    chunks: list[Iterable[_Entry]]
+
+
+def _entries(fh: BinaryIO, fmt: str, source: Path) -> Iterator[tuple[_Entry, int]]:
+    for ordinal, (offset, record) in enumerate(_records(fh, fmt)):
+        row = _decode(record, fmt, source, ordinal + 1)
+        yield (rank_key(row), ordinal, offset, len(record)), _rock_hash(row)
+
+
+def _scan_journal(journal: Path, fmt: str, spill: contextlib.ExitStack, chunk_rows: int) -> _Scan:
+    """Sort keys of a journal in sorted chunks (spilled to temporary files), and
+    the rows to drop (a rock's later rows)."""
+    import numpy as np
+
+    # 9 bytes a row: the rock's identity hash and whether it is an error.
+    hashes = array.array("q")
+    flags = bytearray()
+    chunk: list[_Entry] = []
+    chunks: list[Iterable[_Entry]] = []
+    with _open_journal(journal) as fh:
+        provenance = _read_header(fh, fmt, journal)
+        for entry, rock in _entries(fh, fmt, journal):
+            hashes.append(rock)
+            flags.append(entry[0][0])
+            chunk.append(entry)
+            if len(chunk) >= chunk_rows:
+                chunks.append(_spill(sorted(chunk), journal, spill))
+                chunk = []
+    chunk.sort()
+    chunks.append(chunk)
+    codes = np.frombuffer(hashes, dtype=np.int64) if hashes else np.zeros(0, np.int64)
+    keep = np.zeros(codes.size, dtype=bool)
+    keep[np.unique(codes, return_index=True)[1]] = True
+    drop = frozenset(np.flatnonzero(~keep).tolist())
+    n_errors = int(np.frombuffer(bytes(flags), dtype=np.uint8)[keep].sum()) if flags else 0
+    return _Scan(provenance, int(keep.sum()), n_errors, drop, chunks)
+
+
+def _spill(entries: list[_Entry], journal: Path, stack: contextlib.ExitStack) -> Iterator[_Entry]:
+    try:
+        fh = stack.enter_context(tempfile.TemporaryFile("w+", dir=journal.parent, encoding="utf-8"))
+        for key, ordinal, offset, length in entries:
+            fh.write(json.dumps([*key, ordinal, offset, length]) + "\n")
+        fh.seek(0)
+    except OSError as exc:
+        raise ParameterError(f"{journal}: cannot sort the report ({exc.strerror or exc})") from None
+
+    def read() -> Iterator[_Entry]:
+        for line in fh:
+            a, b, c, d, e, ordinal, offset, length = json.loads(line)
+            yield (a, b, c, d, e), ordinal, offset, length
+
+    return read()
+
+
+def _ranked_rows(journal: Path, fmt: str, scan: _Scan) -> Iterator[dict[str, Any]]:
     rank = 0
-    with open(journal, "rb") as fh:
-        for key, offset, length in entries:
+    with _open_journal(journal) as fh:
+        for key, ordinal, offset, length in heapq.merge(*scan.chunks):
+            if ordinal in scan.drop:
+                continue
             fh.seek(offset)
-            row = _decode(fh.read(length), fmt, journal)
+            row = _decode(fh.read(length), fmt, journal, ordinal + 1)
             if key[0] == 0:
                 rank += 1
                 row["rank"] = rank
             else:
                 row["rank"] = None
             yield row
+
+
+class _Output:
+    """A file written under a temporary name and renamed over the target at the end."""
+
+    def __init__(self, target: Path, stack: contextlib.ExitStack) -> None:
+        self.target = target
+        self.tmp = target.with_name(f".{target.name}.tmp{os.getpid()}")
+        stack.callback(self.tmp.unlink, missing_ok=True)
+        self.fh: BinaryIO = stack.enter_context(open(self.tmp, "wb"))
+
+    def write(self, data: bytes) -> None:
+        self.fh.write(data)
+
+    def commit(self) -> None:
+        self.fh.close()
+        os.replace(self.tmp, self.target)
 
 
 def finalize_report(
@@ -451,11 +791,12 @@ def finalize_report(
     limit: int = 2000,
     n_top: int = 10,
     n_errors: int = 20,
+    chunk_rows: int | None = None,
 ) -> RankedReport:
     """Rank a report's journal and rewrite the report atomically.
 
-    Every photo appears once (the first row of a photo wins), ranked photos
-    first (rank 1, 2, ...), then error rows with no rank.
+    Every rock appears once (the first row of a photo's rock wins), ranked
+    rocks first (rank 1, 2, ...), then error rows with no rank.
 
     Parameters
     ----------
@@ -464,55 +805,101 @@ def finalize_report(
     title : str
         Heading of an HTML report.
     limit : int
-        An HTML report shows the best ``limit`` photos and at most ``limit``
+        An HTML report shows the best ``limit`` rocks and at most ``limit``
         error rows; its journal keeps all.
     n_top, n_errors : int
         How many best rows and error rows to return.
+    chunk_rows : int, optional
+        Sort keys held in memory at once (default :data:`CHUNK_ROWS`).
 
     Returns
     -------
     RankedReport
+
+    Raises
+    ------
+    ParameterError
+        If the report cannot be read or written (it is then left as it was).
     """
     report = Path(path)
     fmt = report_format(report)
     journal = journal_path(report)
     line_fmt = "csv" if fmt == "csv" else "jsonl"
-    entries = _ranked(journal, line_fmt)
     top: list[dict[str, Any]] = []
     errors: list[dict[str, Any]] = []
-    shown: list[dict[str, Any]] = []
-    n_err = n_shown_ok = n_shown_err = 0
-    tmp = journal.with_name(f".{journal.name}.tmp{os.getpid()}")
+    n_err = 0
     try:
-        with open(tmp, "wb") as out:
-            if line_fmt == "csv":
-                out.write((",".join(CSV_COLUMNS) + "\n").encode("utf-8"))
-            for row in _iter_ranked(journal, line_fmt, entries):
+        with contextlib.ExitStack() as stack:
+            scan = _scan_journal(journal, line_fmt, stack, chunk_rows or CHUNK_ROWS)
+            out = _Output(journal, stack)
+            out.write(_header(scan.provenance, line_fmt))
+            page = _open_page(fmt, report, scan, stack, title=title, limit=limit)
+            for row in _ranked_rows(journal, line_fmt, scan):
                 out.write(_encode(row, line_fmt))
                 is_error = row.get("error") is not None
                 n_err += is_error
-                if not is_error and len(top) < n_top:
-                    top.append({k: v for k, v in row.items() if k != THUMBNAIL_KEY})
-                if is_error and len(errors) < n_errors:
-                    errors.append({k: v for k, v in row.items() if k != THUMBNAIL_KEY})
-                if fmt == "html" and (n_shown_err if is_error else n_shown_ok) < limit:
-                    shown.append(row)
-                    n_shown_err += is_error
-                    n_shown_ok += not is_error
-        os.replace(tmp, journal)
+                kept, most = (errors, n_errors) if is_error else (top, n_top)
+                if len(kept) < most:
+                    kept.append({k: v for k, v in row.items() if k != THUMBNAIL_KEY})
+                if page is not None:
+                    page[0].send(row)
+            out.commit()
+            if page is not None:
+                page[0].close()
+                page[1].commit()
     except OSError as exc:
-        tmp.unlink(missing_ok=True)
         raise ParameterError(f"{report}: cannot write report ({exc.strerror or exc})") from None
-    if fmt == "html":
-        write_html(report, shown, n_rows=len(entries), n_errors=n_err, title=title, limit=limit)
     return RankedReport(
-        path=report, n_rows=len(entries), n_errors=n_err, top=tuple(top), errors=tuple(errors)
+        path=report,
+        n_rows=scan.n_rows,
+        n_errors=n_err,
+        top=tuple(top),
+        errors=tuple(errors),
+        provenance=scan.provenance,
     )
+
+
+def _open_page(
+    fmt: str,
+    report: Path,
+    scan: _Scan,
+    stack: contextlib.ExitStack,
+    *,
+    title: str,
+    limit: int,
+    in_progress: bool = False,
+) -> tuple[Generator[None, dict[str, Any], None], _Output] | None:
+    """A generator that takes ranked rows and writes the page or FeatureCollection."""
+    if fmt not in _SIDE_JOURNAL:
+        return None
+    out = _Output(report, stack)
+    if fmt == "html":
+        from rockscan.report_html import sheet_writer
+
+        gen = sheet_writer(
+            out.write,
+            n_rows=scan.n_rows,
+            n_errors=scan.n_errors,
+            title=title,
+            report=report,
+            journal_name=journal_path(report).name,
+            limit=limit,
+            provenance=scan.provenance,
+            in_progress=in_progress,
+        )
+    else:
+        from rockscan.geojson import feature_collection_writer
+
+        gen = feature_collection_writer(out.write, provenance=scan.provenance)
+    next(gen)
+    return gen, out
 
 
 def refresh_html(path: str | os.PathLike[str], *, title: str = "rockscan triage", limit: int = 2000) -> None:
     """Rebuild an HTML report's page from its journal while the run goes on
     (the journal itself is left as it is).
+
+    Only the ``limit`` best rocks and first ``limit`` errors are held (a heap).
 
     Parameters
     ----------
@@ -524,296 +911,42 @@ def refresh_html(path: str | os.PathLike[str], *, title: str = "rockscan triage"
     """
     report = Path(path)
     journal = journal_path(report)
-    entries = _ranked(journal, "jsonl")
-    n_err = sum(key[0] for key, _, _ in entries)
-    ok = [e for e in entries if e[0][0] == 0][:limit]
-    bad = [e for e in entries if e[0][0] == 1][:limit]
-    rows = list(_iter_ranked(journal, "jsonl", ok + bad))
-    write_html(report, rows, n_rows=len(entries), n_errors=n_err, title=title, limit=limit, in_progress=True)
-
-
-# ---------------------------------------------------------------- HTML
-
-
-def write_html(
-    path: str | os.PathLike[str],
-    rows: Iterable[dict[str, Any]],
-    *,
-    n_rows: int,
-    n_errors: int,
-    title: str = "rockscan triage",
-    limit: int = 2000,
-    in_progress: bool = False,
-) -> None:
-    """Write the contact sheet atomically (see :func:`render_html`)."""
-    path = Path(path)
-    text = render_html(
-        rows,
-        n_rows=n_rows,
-        n_errors=n_errors,
-        title=title,
-        journal_name=journal_path(path).name,
-        limit=limit,
-        in_progress=in_progress,
-    )
-    tmp = path.with_name(f".{path.name}.tmp{os.getpid()}")
+    best: list[_Negated] = []
+    bad: list[_Negated] = []
+    n_rows = n_err = 0
+    with _open_journal(journal) as fh:
+        provenance = _read_header(fh, "jsonl", journal)
+        for entry, _ in _entries(fh, "jsonl", journal):
+            n_rows += 1
+            n_err += entry[0][0]
+            heap = bad if entry[0][0] else best
+            # A max-heap of the best `limit` keeps memory to the page's rows.
+            item = _Negated(entry)
+            if len(heap) < limit:
+                heapq.heappush(heap, item)
+            elif heap[0] < item:
+                heapq.heapreplace(heap, item)
+    entries = sorted(e.entry for e in best) + sorted(e.entry for e in bad)
+    scan = _Scan(provenance, n_rows, n_err, frozenset(), [entries])
     try:
-        tmp.write_text(text, encoding="utf-8")
-        os.replace(tmp, path)
+        with contextlib.ExitStack() as stack:
+            page = _open_page("html", report, scan, stack, title=title, limit=limit, in_progress=True)
+            assert page is not None
+            for row in _ranked_rows(journal, "jsonl", scan):
+                page[0].send(row)
+            page[0].close()
+            page[1].commit()
     except OSError as exc:
-        tmp.unlink(missing_ok=True)
-        raise ParameterError(f"{path}: cannot write report ({exc.strerror or exc})") from None
+        raise ParameterError(f"{report}: cannot write report ({exc.strerror or exc})") from None
 
 
-def render_html(
-    rows: Iterable[dict[str, Any]],
-    *,
-    n_rows: int,
-    n_errors: int,
-    title: str = "rockscan triage",
-    journal_name: str = "",
-    limit: int = 2000,
-    in_progress: bool = False,
-) -> str:
-    """The contact sheet: one card per photo, best first, sortable and filterable.
+class _Negated:
+    """Orders entries in reverse, so that heapq's min-heap keeps the smallest keys."""
 
-    Parameters
-    ----------
-    rows : iterable of dict
-        Ranked rows (with ``thumbnail`` data URIs where there is one).
-    n_rows, n_errors : int
-        Photos and error rows in the whole report.
-    title : str
-    journal_name : str
-        File name of the journal that holds every row (linked from the page).
-    limit : int
-        How many photos the page shows at most (stated on the page).
-    in_progress : bool
-        The run is still going (stated on the page).
+    __slots__ = ("entry",)
 
-    Returns
-    -------
-    str
-        A self-contained HTML page: styles, script and thumbnails inline, no
-        network access.
-    """
-    cards = []
-    shapes: set[str] = set()
-    n_shown = 0
-    for row in rows:
-        n_shown += 1
-        cards.append(_card(row))
-        if row.get("match"):
-            shapes.add(row["match"])
-    n_ranked = n_rows - n_errors
-    notes = [f"{n_rows} photos: {n_ranked} ranked, {n_errors} errors."]
-    if n_ranked > limit or n_errors > limit:
-        notes.append(f"This page shows the best {limit} photos and at most {limit} errors.")
-    if journal_name:
-        link = html.escape(journal_name, quote=True)
-        notes.append(f'Every row is in <a href="{link}">{html.escape(journal_name)}</a>.')
-    if in_progress:
-        notes.append("The run is still going: this page is a snapshot.")
-    options = "".join(
-        f'<option value="{html.escape(s, quote=True)}">{html.escape(s)}</option>' for s in sorted(shapes)
-    )
-    sort_buttons = "".join(
-        f'<button type="button" class="sort" data-key="{key}">{label}</button>' for key, label in _SORTS
-    )
-    return _PAGE.format(
-        title=html.escape(title),
-        notes=" ".join(notes),
-        options=options,
-        sort_buttons=sort_buttons,
-        cards="\n".join(cards),
-        n_shown=n_shown,
-        style=_STYLE,
-        script=_SCRIPT,
-    )
+    def __init__(self, entry: _Entry) -> None:
+        self.entry = entry
 
-
-_SORTS = (
-    ("rank", "rank"),
-    ("interest", "interest"),
-    ("mscore", "MScore"),
-    ("angle", "angle"),
-    ("novelty", "novelty"),
-    ("match", "match"),
-    ("path", "photo"),
-)
-
-
-def _number(value: Any) -> str:
-    return "" if value is None or (isinstance(value, float) and not math.isfinite(value)) else repr(value)
-
-
-def _card(row: dict[str, Any]) -> str:
-    esc = html.escape
-    path = row["path"]
-    error = row.get("error")
-    attrs = {
-        "rank": "" if row.get("rank") is None else str(row["rank"]),
-        "interest": _number(row.get("interest")),
-        "mscore": _number(row.get("mscore")),
-        "angle": _number(row.get("angle_deg")),
-        "novelty": _number(row.get("novelty")),
-        "match": row.get("match") or row.get("nearest") or "",
-        "path": path,
-        "error": "1" if error is not None else "0",
-        "interesting": "1" if row.get("interesting") else "0",
-        "novel": "1" if row.get("novel") else "0",
-    }
-    data = " ".join(f'data-{k}="{esc(v, quote=True)}"' for k, v in attrs.items())
-    thumb = row.get(THUMBNAIL_KEY)
-    image = (
-        f'<img src="{esc(thumb, quote=True)}" alt="{esc(path, quote=True)}" loading="eager">'
-        if thumb
-        else '<div class="noimage">no image</div>'
-    )
-    if error is not None:
-        # The message names the photo already; the card shows the path below it.
-        message = error[len(path) + 2 :] if error.startswith(f"{path}: ") else error
-        text = f'<span class="error">error: {esc(message)}</span>'
-    else:
-        shape = row.get("match")
-        verdict = f"<b>{esc(shape)}</b>" if shape else f"no match (nearest {esc(row['nearest'])})"
-        parts = [
-            f'<span class="rank">#{row["rank"]}</span> {verdict}' if row.get("rank") else verdict,
-            f"interest {row['interest']:.3f}",
-            f"MScore {row['mscore']:.3f}",
-            f"angle {row['angle_deg']:.1f}&deg;",
-        ]
-        if row.get("novelty") is not None:
-            flag = ' <span class="novel">novel</span>' if row.get("novel") else ""
-            parts.append(f"novelty {row['novelty']:.3f}{flag}")
-        text = "<br>".join(parts)
-    return (
-        f'<figure class="card" {data}>{image}<figcaption>{text}'
-        f'<span class="path" title="{esc(path, quote=True)}">{esc(path)}</span></figcaption></figure>'
-    )
-
-
-_STYLE = """
-body { font: 14px/1.35 system-ui, sans-serif; margin: 0; color: #222; background: #f4f4f2; }
-header { padding: 12px 16px 4px; }
-h1 { font-size: 20px; margin: 0 0 4px; }
-#controls { position: sticky; top: 0; background: #f4f4f2ee; padding: 8px 16px;
-  display: flex; flex-wrap: wrap; gap: 8px; align-items: center; border-bottom: 1px solid #ccc; }
-button.sort { border: 1px solid #999; background: #fff; border-radius: 4px; padding: 2px 8px;
-  cursor: pointer; }
-button.sort.active { background: #234; color: #fff; }
-#sheet { display: grid; grid-template-columns: repeat(auto-fill, minmax(210px, 1fr)); gap: 10px;
-  padding: 12px 16px; }
-figure.card { margin: 0; background: #fff; border: 1px solid #ccc; border-radius: 6px; padding: 6px; }
-figure.card[data-error="1"] { border-color: #c33; }
-figure.card img, .noimage { display: block; max-width: 100%; max-height: 200px; margin: 0 auto 4px; }
-.noimage { height: 120px; line-height: 120px; text-align: center; color: #999; background: #eee; }
-.path { display: block; color: #666; font-size: 12px; overflow-wrap: anywhere; }
-.error { color: #b00; }
-.novel { background: #fd4; padding: 0 4px; border-radius: 3px; }
-.legend { color: #555; font-size: 12px; }
-.legend i { font-style: normal; font-weight: bold; }
-"""
-
-_SCRIPT = """
-(function () {
-  const sheet = document.getElementById('sheet');
-  const cards = Array.from(sheet.querySelectorAll('figure.card'));
-  const numeric = new Set(['rank', 'interest', 'mscore', 'angle', 'novelty']);
-  const descending = new Set(['interest', 'mscore', 'novelty']);
-  const state = { key: 'rank', ascending: true };
-  const $ = (id) => document.getElementById(id);
-
-  function value(card, key) {
-    const raw = card.dataset[key];
-    if (!numeric.has(key)) return raw.toLowerCase();
-    return raw === '' ? null : parseFloat(raw);
-  }
-  function compare(a, b) {
-    const va = value(a, state.key), vb = value(b, state.key);
-    // Rows without the value (errors) stay last whichever way the sort goes.
-    if (va === null || vb === null) {
-      if (va === vb) return value(a, 'path') < value(b, 'path') ? -1 : 1;
-      return va === null ? 1 : -1;
-    }
-    let order = va < vb ? -1 : va > vb ? 1 : 0;
-    if (!state.ascending) order = -order;
-    if (order === 0) order = value(a, 'path') < value(b, 'path') ? -1 : 1;
-    return order;
-  }
-  function visible(card) {
-    const text = $('filter').value.trim().toLowerCase();
-    const shape = $('shape').value;
-    const d = card.dataset;
-    if (text && !(d.path.toLowerCase().includes(text) || d.match.toLowerCase().includes(text))) return false;
-    if (shape && d.match !== shape) return false;
-    if ($('only-interesting').checked && d.interesting !== '1') return false;
-    if ($('only-novel').checked && d.novel !== '1') return false;
-    if (!$('show-errors').checked && d.error === '1') return false;
-    return true;
-  }
-  function apply() {
-    cards.sort(compare);
-    let shown = 0;
-    for (const card of cards) {
-      const show = visible(card);
-      card.hidden = !show;
-      shown += show;
-      sheet.appendChild(card);
-    }
-    $('count').textContent = shown + ' of ' + cards.length + ' shown';
-    for (const button of document.querySelectorAll('button.sort')) {
-      const active = button.dataset.key === state.key;
-      button.classList.toggle('active', active);
-      button.setAttribute('aria-pressed', active ? 'true' : 'false');
-      button.textContent = button.dataset.label + (active ? (state.ascending ? ' \\u2191' : ' \\u2193') : '');
-    }
-  }
-  for (const button of document.querySelectorAll('button.sort')) {
-    button.dataset.label = button.textContent;
-    button.addEventListener('click', () => {
-      const key = button.dataset.key;
-      if (state.key === key) state.ascending = !state.ascending;
-      else { state.key = key; state.ascending = !descending.has(key); }
-      apply();
-    });
-  }
-  for (const id of ['filter', 'shape', 'only-interesting', 'only-novel', 'show-errors']) {
-    $(id).addEventListener('input', apply);
-    $(id).addEventListener('change', apply);
-  }
-  apply();
-})();
-"""
-
-_PAGE = """<!DOCTYPE html>
-<html lang="en">
-<head>
-<meta charset="utf-8">
-<meta name="viewport" content="width=device-width, initial-scale=1">
-<title>{title}</title>
-<style>{style}</style>
-</head>
-<body>
-<header>
-<h1>{title}</h1>
-<p>{notes} Ranked by interest: MScore times the matched shape's interest.</p>
-<p class="legend">On each photo: <i style="color:#0bb">cyan</i> the rock's outline,
-<i style="color:#c0c">magenta</i> the matched library shape turned by the found angle.</p>
-</header>
-<div id="controls">
-<span>Sort:</span> {sort_buttons}
-<input id="filter" type="search" placeholder="filter: photo or shape" aria-label="filter by photo or shape">
-<select id="shape" aria-label="matched shape"><option value="">all shapes</option>{options}</select>
-<label><input type="checkbox" id="only-interesting"> interesting only</label>
-<label><input type="checkbox" id="only-novel"> novel only</label>
-<label><input type="checkbox" id="show-errors" checked> errors</label>
-<span id="count">{n_shown} shown</span>
-</div>
-<main id="sheet">
-{cards}
-</main>
-<script>{script}</script>
-</body>
-</html>
-"""
+    def __lt__(self, other: _Negated) -> bool:
+        return self.entry > other.entry

@@ -17,7 +17,14 @@ Interest (the ranking rule)
 ---------------------------
 ``interest = MScore * interest_k`` where ``k`` is the matched library shape
 and ``interest_k`` its weight (``interest = <number>`` in the spec, default 1).
-A rock that fails the cutoffs (no match) has interest 0. Ties go to the higher
+A rock that fails the cutoffs (no match) has interest 0. With an observed
+library, novelty is rewarded too::
+
+    interest = max(MScore * interest_k, w * min(novelty / threshold, 1))
+
+so a rock unlike everything seen (novel: ``novelty > threshold``) scores ``w``
+(default: the library's largest ``interest_k``, as much as a perfect match of
+its most wanted shape) instead of sinking to the bottom. Ties go to the higher
 MScore, then to the path; photos that could not be classified come last.
 """
 
@@ -26,7 +33,11 @@ from __future__ import annotations
 import base64
 import concurrent.futures as cf
 import contextlib
+import dataclasses
+import hashlib
 import io
+import json
+import logging
 import math
 import os
 import signal
@@ -51,6 +62,7 @@ from rockscan.report import (
     RankedReport,
     ReportJournal,
     finalize_report,
+    lock_report,
     photo_key,
     refresh_html,
     report_format,
@@ -66,7 +78,9 @@ __all__ = [
     "TriageSummary",
     "find_photos",
     "interest_score",
+    "library_hash",
     "photo_outcome",
+    "report_provenance",
     "thumbnail_data_uri",
     "triage_folder",
     "triage_row",
@@ -108,6 +122,11 @@ class TriageConfig:
         Photos in flight per worker (bounds memory); default 4.
     connect_timeout_s : float
         How long to try to reach the scheduler, seconds.
+    all_rocks : bool
+        Rank every rock of every photo (``--all``), each row with its ``index``.
+    novelty_weight : float or None
+        ``w`` of the interest rule with an observed library; None takes the
+        library's largest shape interest, 0 leaves novelty out of interest.
     """
 
     classify: ClassifyConfig = field(default_factory=ClassifyConfig)
@@ -117,10 +136,12 @@ class TriageConfig:
     overwrite: bool = False
     novelty: NoveltyConfig = field(default_factory=NoveltyConfig)
     html_limit: int = 2000
-    thumbnail_size: int = 192
+    thumbnail_size: int = 144
     refresh_s: float = 30.0
     window: int | None = None
     connect_timeout_s: float = 30.0
+    all_rocks: bool = False
+    novelty_weight: float | None = None
 
     def __post_init__(self) -> None:
         if self.workers is not None and (isinstance(self.workers, bool) or int(self.workers) < 1):
@@ -139,6 +160,10 @@ class TriageConfig:
             raise ParameterError("connect_timeout_s must be a positive number of seconds")
         if self.scheduler is not None and not str(self.scheduler).strip():
             raise ParameterError("scheduler must be an address such as tcp://host:8786")
+        if self.novelty_weight is not None and not (
+            math.isfinite(self.novelty_weight) and self.novelty_weight >= 0
+        ):
+            raise ParameterError("novelty_weight must be a non-negative number")
 
     @property
     def n_workers(self) -> int:
@@ -292,16 +317,27 @@ class PhotoOutcome:
     radii : (n_angles,) ndarray of float or None
         The rock's radii (for novelty); None for an error.
     thumbnail : str or None
-        A JPEG data URI of the photo with outline and matched shape drawn, when asked for.
+        A data URI of a small picture of the photo with outline and matched shape drawn, when asked for.
+    more : tuple of PhotoOutcome
+        The photo's other rocks, with ``all_rocks`` (index 1, 2, ...).
     """
 
     record: dict[str, Any]
     radii: NDArray[np.float64] | None = None
     thumbnail: str | None = None
+    more: tuple[PhotoOutcome, ...] = ()
+
+    def rocks(self) -> tuple[PhotoOutcome, ...]:
+        """This outcome and those of the photo's other rocks, by index."""
+        return (self, *self.more)
 
 
 def photo_outcome(
-    path: str, library: Library, config: ClassifyConfig | None = None, thumbnail_size: int = 0
+    path: str,
+    library: Library,
+    config: ClassifyConfig | None = None,
+    thumbnail_size: int = 0,
+    all_rocks: bool = False,
 ) -> PhotoOutcome:
     """Classify one photo for triage; never raises for a bad photo.
 
@@ -312,6 +348,8 @@ def photo_outcome(
     config : ClassifyConfig, optional
     thumbnail_size : int
         Make a thumbnail with this longer side (0: none).
+    all_rocks : bool
+        Every rock of the photo, not only the main one.
 
     Returns
     -------
@@ -321,12 +359,15 @@ def photo_outcome(
         so that one photo never stops a batch.
     """
     try:
-        result = classify_path(path, library, config)
-        rock = result.rocks[0] if result.ok else None
-        thumbnail = _thumbnail_or_none(path, rock, library, thumbnail_size) if thumbnail_size else None
-        return PhotoOutcome(
-            record=result.records()[0], radii=None if rock is None else rock.radii, thumbnail=thumbnail
-        )
+        result = classify_path(path, library, config, all_rocks=all_rocks)
+        if not result.ok:
+            return PhotoOutcome(record=result.records()[0])
+        thumbs = _thumbnails_or_none(path, result.rocks, library, thumbnail_size)
+        outcomes = [
+            PhotoOutcome(record=record, radii=rock.radii, thumbnail=thumb)
+            for record, rock, thumb in zip(result.records(), result.rocks, thumbs, strict=True)
+        ]
+        return dataclasses.replace(outcomes[0], more=tuple(outcomes[1:]))
     except Exception as exc:  # one photo must never stop a batch of millions
         first = str(exc).splitlines()[0] if str(exc) else ""
         return PhotoOutcome(
@@ -337,16 +378,20 @@ def photo_outcome(
         )
 
 
-def _thumbnail_or_none(path: str, rock: RockResult | None, library: Library, size: int) -> str | None:
+def _thumbnails_or_none(
+    path: str, rocks: tuple[RockResult, ...], library: Library, size: int
+) -> list[str | None]:
+    if not size:
+        return [None] * len(rocks)
     try:
-        return thumbnail_data_uri(path, rock, library, size)
+        return thumbnail_data_uris(path, rocks, library, size)
     except RockscanError:
-        return None
+        return [None] * len(rocks)
 
 
-def thumbnail_data_uri(path: str, rock: RockResult | None, library: Library, size: int = 192) -> str:
-    """A small JPEG of a photo with the rock's outline (cyan) and the matched
-    library shape (magenta, turned by the found angle) drawn on it.
+def thumbnail_data_uri(path: str, rock: RockResult | None, library: Library, size: int = 144) -> str:
+    """A small WebP (or JPEG) of a photo with the rock's outline and the matched
+    library shape (turned by the found angle) drawn on it.
 
     Parameters
     ----------
@@ -361,7 +406,44 @@ def thumbnail_data_uri(path: str, rock: RockResult | None, library: Library, siz
     Returns
     -------
     str
-        ``data:image/jpeg;base64,...``
+        ``data:image/webp;base64,...`` (JPEG where Pillow has no WebP).
+
+    Raises
+    ------
+    ImageReadError
+        If the photo cannot be read.
+    """
+    return thumbnail_data_uris(path, (rock,), library, size)[0]
+
+
+#: WebP quality of thumbnails: about 3 kB each at 144 pixels on textured ground,
+#: half a JPEG's (a 2,000-rock sheet stays under 10 MB; scripts/bench_report_size.py
+#: measures it).
+THUMBNAIL_QUALITY = 50
+
+
+def thumbnail_data_uris(
+    path: str, rocks: tuple[RockResult | None, ...], library: Library, size: int = 144
+) -> list[str]:
+    """Thumbnails of one photo, one per rock (the photo is read once).
+
+    The outline is drawn in :data:`rockscan.report_html.OUTLINE_RGB` (yellow)
+    over the matched shape in :data:`rockscan.report_html.SHAPE_RGB` (blue),
+    wider, so that both show where they agree. WebP halves colour resolution;
+    its sharp colour conversion and the lines' wide gap in lightness keep them
+    apart (tests/test_report_html.py measures it).
+
+    Parameters
+    ----------
+    path : str
+    rocks : tuple of RockResult or None
+    library : Library
+    size : int
+
+    Returns
+    -------
+    list of str
+        Data URIs, one per rock.
 
     Raises
     ------
@@ -369,37 +451,46 @@ def thumbnail_data_uri(path: str, rock: RockResult | None, library: Library, siz
         If the photo cannot be read.
     """
     import cv2
-    from PIL import Image
+    from PIL import Image, features
 
     from rockscan.io import read_image
     from rockscan.plot import library_outline_rowcol
+    from rockscan.report_html import OUTLINE_RGB, SHAPE_RGB
 
     image = read_image(path, max_side=2 * size)
     pixels = _rgb8(image.pixels)
     rows, cols = pixels.shape[:2]
     factor = min(1.0, size / max(rows, cols))
     out_size = (max(1, round(cols * factor)), max(1, round(rows * factor)))
-    thumb = cv2.resize(pixels, out_size, interpolation=cv2.INTER_AREA) if factor < 1 else pixels.copy()
-    if rock is not None:
-        full_rows, full_cols = image.full_shape
-        per_row, per_col = full_rows / thumb.shape[0], full_cols / thumb.shape[1]
+    base = cv2.resize(pixels, out_size, interpolation=cv2.INTER_AREA) if factor < 1 else pixels
+    full_rows, full_cols = image.full_shape
+    per_row, per_col = full_rows / base.shape[0], full_cols / base.shape[1]
 
-        def points(rowcol: NDArray[np.float64]) -> NDArray[np.int32]:
-            # Full-resolution pixel centres to thumbnail pixels, 4 fractional bits.
-            col = (rowcol[:, 1] + 0.5) / per_col - 0.5
-            row = (rowcol[:, 0] + 0.5) / per_row - 0.5
-            return np.round(np.column_stack([col, row]) * 16).astype(np.int32)
+    def points(rowcol: NDArray[np.float64]) -> NDArray[np.int32]:
+        # Full-resolution pixel centres to thumbnail pixels, 4 fractional bits.
+        col = (rowcol[:, 1] + 0.5) / per_col - 0.5
+        row = (rowcol[:, 0] + 0.5) / per_row - 0.5
+        return np.round(np.column_stack([col, row]) * 16).astype(np.int32)
 
-        # The matched shape underneath, wider, so that both lines show where they agree.
-        matched = points(library_outline_rowcol(library, rock))
-        cv2.polylines(thumb, [matched], True, (230, 0, 230), 2, cv2.LINE_AA, 4)
-        cv2.polylines(thumb, [points(rock.outline.contour_rowcol)], True, (0, 230, 230), 1, cv2.LINE_AA, 4)
-        ((cx, cy),) = points(rock.outline.centroid_rowcol[None, :]) // 16
-        cv2.drawMarker(thumb, (int(cx), int(cy)), (230, 0, 230), cv2.MARKER_CROSS, 7, 1)
-    buf = io.BytesIO()
-    # Full-resolution colour (4:4:4): thin coloured lines keep their colour.
-    Image.fromarray(thumb).save(buf, format="JPEG", quality=85, subsampling=0)
-    return "data:image/jpeg;base64," + base64.b64encode(buf.getvalue()).decode("ascii")
+    webp = features.check("webp")
+    out = []
+    for rock in rocks:
+        thumb = base.copy()
+        if rock is not None:
+            matched = points(library_outline_rowcol(library, rock))
+            # Two pixels at least: WebP keeps colour at half resolution.
+            cv2.polylines(thumb, [matched], True, SHAPE_RGB, 3, cv2.LINE_AA, 4)
+            cv2.polylines(thumb, [points(rock.outline.contour_rowcol)], True, OUTLINE_RGB, 2, cv2.LINE_AA, 4)
+            ((cx, cy),) = points(rock.outline.centroid_rowcol[None, :]) // 16
+            cv2.drawMarker(thumb, (int(cx), int(cy)), SHAPE_RGB, cv2.MARKER_CROSS, 8, 2)
+        buf = io.BytesIO()
+        if webp:
+            Image.fromarray(thumb).save(buf, format="WEBP", quality=THUMBNAIL_QUALITY, use_sharp_yuv=True)
+        else:
+            Image.fromarray(thumb).save(buf, format="JPEG", quality=THUMBNAIL_QUALITY, subsampling=0)
+        kind = "webp" if webp else "jpeg"
+        out.append(f"data:image/{kind};base64," + base64.b64encode(buf.getvalue()).decode("ascii"))
+    return out
 
 
 def _rgb8(pixels: NDArray[np.generic]) -> NDArray[np.uint8]:
@@ -413,8 +504,17 @@ def _rgb8(pixels: NDArray[np.generic]) -> NDArray[np.uint8]:
     return np.ascontiguousarray(arr[..., :3])
 
 
-def interest_score(match: str | None, mscore: float, shape_interest: float) -> float:
-    """The ranking rule: MScore weighted by the matched shape's interest.
+def interest_score(
+    match: str | None,
+    mscore: float,
+    shape_interest: float,
+    *,
+    novelty: float | None = None,
+    threshold: float = 1.0,
+    novelty_weight: float = 0.0,
+) -> float:
+    """The ranking rule: MScore weighted by the matched shape's interest, and
+    novelty rewarded when it is measured.
 
     Parameters
     ----------
@@ -424,11 +524,18 @@ def interest_score(match: str | None, mscore: float, shape_interest: float) -> f
         ``1 - min(w)/mean(w)``, in [0, 1].
     shape_interest : float
         The matched shape's ``interest`` (default 1).
+    novelty : float, optional
+        The rock's distance from every shape seen so far (:mod:`rockscan.novelty`).
+    threshold : float
+        Novelty above which a rock is novel.
+    novelty_weight : float
+        What a novel rock scores (``w``).
 
     Returns
     -------
     float
-        ``mscore * shape_interest``, or 0 without a match.
+        ``max(mscore * shape_interest, w * min(novelty / threshold, 1))``, the
+        first term 0 without a match, the second 0 without novelty.
 
     Examples
     --------
@@ -436,8 +543,17 @@ def interest_score(match: str | None, mscore: float, shape_interest: float) -> f
     1.8
     >>> interest_score(None, 0.9, 2.0)
     0.0
+    >>> interest_score(None, 0.9, 2.0, novelty=0.3, threshold=0.2, novelty_weight=2.0)
+    2.0
     """
-    return float(mscore) * float(shape_interest) if match is not None else 0.0
+    score = float(mscore) * float(shape_interest) if match is not None else 0.0
+    if novelty is None or novelty_weight <= 0:
+        return score
+    if threshold > 0:
+        ratio = min(float(novelty) / threshold, 1.0)
+    else:
+        ratio = 1.0 if novelty > 0 else 0.0
+    return max(score, float(novelty_weight) * ratio)
 
 
 def triage_row(record: dict[str, Any], library: Library) -> dict[str, Any]:
@@ -453,8 +569,9 @@ def triage_row(record: dict[str, Any], library: Library) -> dict[str, Any]:
     Returns
     -------
     row : dict
-        Keys :data:`rockscan.report.ROW_KEYS`; the record's own keys keep its
-        values, ``rank`` and the novelty keys are None.
+        Keys :data:`rockscan.report.ROW_KEYS` then any other key of the
+        record (``outline``); the record's own keys keep their values,
+        ``rank`` and the novelty keys are None.
     """
     row: dict[str, Any] = dict.fromkeys(ROW_KEYS)
     row.update(record)
@@ -465,19 +582,167 @@ def triage_row(record: dict[str, Any], library: Library) -> dict[str, Any]:
     return row
 
 
+# ---------------------------------------------------------------- provenance
+
+
+def _jsonable(value: Any) -> Any:
+    if dataclasses.is_dataclass(value) and not isinstance(value, type):
+        return {f.name: _jsonable(getattr(value, f.name)) for f in dataclasses.fields(value)}
+    if isinstance(value, dict):
+        return {str(k): _jsonable(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [_jsonable(v) for v in value]
+    if isinstance(value, np.ndarray):
+        return _jsonable(value.tolist())
+    if isinstance(value, np.generic):
+        return value.item()
+    if value is None or isinstance(value, (bool, int, float, str)):
+        return value
+    return repr(value)
+
+
+def library_hash(library: Library) -> str:
+    """A content hash of a library: its shapes, not the file they came in.
+
+    SHA-256 of the names, interests, symmetries, face settings and basis size
+    (canonical JSON), and the radii as little-endian float64 rounded to 10
+    decimals. The basis itself (a BLAS result) is left out, so the hash is the
+    same in every process and at every thread count; the same spec built
+    twice, or saved and loaded, hashes the same.
+
+    Parameters
+    ----------
+    library : Library
+
+    Returns
+    -------
+    str
+        64 hex digits.
+    """
+    meta = {
+        "names": list(library.names),
+        "interest": [float(v) for v in library.interest],
+        "symmetry": [int(v) for v in library.symmetry],
+        "face_config": _jsonable(library.face_config),
+        "n_components": int(library.basis.n_components),
+    }
+    digest = hashlib.sha256(json.dumps(meta, sort_keys=True, separators=(",", ":")).encode("utf-8"))
+    digest.update(np.round(np.asarray(library.radii, dtype="<f8"), 10).tobytes())
+    return digest.hexdigest()
+
+
+def report_provenance(
+    library: Library, config: TriageConfig, novelty: ObservedShapes | None = None
+) -> dict[str, Any]:
+    """How a triage report's rows are made: everything that changes a row.
+
+    Parameters
+    ----------
+    library : Library
+    config : TriageConfig
+    novelty : ObservedShapes, optional
+        The observed library at the start of the run (its threshold and metric
+        are recorded; the shapes it gains during a run are not settings).
+
+    Returns
+    -------
+    dict
+        ``rockscan`` (version), ``library`` (content hash, shapes, face kind),
+        ``method`` (the matcher's metrics and scan), ``cutoffs`` (in force,
+        defaults resolved), ``options`` (every rock, novelty, the interest
+        rule's weight, other classify settings), ``segmentation`` (every
+        segmentation setting). JSON-able.
+    """
+    from rockscan import __version__
+
+    match = config.classify.match
+    theta, gamma, rho = match.cutoffs(library.face_config.kind)
+    classify = _jsonable(config.classify)
+    classify.pop("match", None)
+    segmentation = classify.pop("segment", None)
+    options: dict[str, Any] = {"all_rocks": bool(config.all_rocks), **classify}
+    if novelty is not None:
+        options["novelty"] = {"metric": novelty.metric, "threshold": novelty.threshold}
+        options["novelty_weight"] = _novelty_weight(library, config)
+    return {
+        "rockscan": __version__,
+        "library": {
+            "sha256": library_hash(library),
+            "shapes": len(library),
+            "face": library.face_config.kind,
+        },
+        "method": {
+            "metric": match.resolved_metric(library),
+            "angle_metric": match.angle_metric,
+            "scan": match.scan,
+            "refine": match.refine,
+        },
+        "cutoffs": {"distance": theta, "mscore": gamma, "residual": rho},
+        "options": options,
+        "segmentation": segmentation,
+    }
+
+
+def _novelty_weight(library: Library, config: TriageConfig) -> float:
+    if config.novelty_weight is not None:
+        return float(config.novelty_weight)
+    return float(np.max(library.interest))
+
+
 # ---------------------------------------------------------------- workers
 
 _WORKER: dict[str, Any] = {}
 
 
-def _init_worker(library: Library, config: ClassifyConfig, thumbnail_size: int) -> None:
+def _die_with_parent(parent: int | None) -> None:
+    """End this worker when the process that started the pool ends (kill -9 included)."""
+    if sys.platform.startswith("linux"):
+        import ctypes
+
+        # Sent when the process that forked this one ends: the triage itself, or
+        # the fork server, which ends with the triage.
+        with contextlib.suppress(OSError, AttributeError):
+            pr_set_pdeathsig = 1
+            ctypes.CDLL(None, use_errno=True).prctl(pr_set_pdeathsig, int(signal.SIGKILL), 0, 0, 0)
+    if parent is None:
+        return
+    # The parent may have died before the signal was asked for.
+    if not _alive(parent):
+        os._exit(1)
+    if not sys.platform.startswith("linux"):
+        import threading
+
+        def watch() -> None:
+            while _alive(parent):
+                time.sleep(1.0)
+            os._exit(1)
+
+        threading.Thread(target=watch, daemon=True, name="rockscan-parent-watch").start()
+
+
+def _alive(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except OSError:  # another user's process of that number: it exists
+        return True
+    return True
+
+
+def _init_worker(
+    library: Library, config: ClassifyConfig, thumbnail_size: int, all_rocks: bool, parent: int | None
+) -> None:
+    _die_with_parent(parent)
     # Ctrl-C is the parent's to handle: it finishes the report, then stops.
     signal.signal(signal.SIGINT, signal.SIG_IGN)
-    _WORKER.update(library=library, config=config, thumbnail_size=thumbnail_size)
+    _WORKER.update(library=library, config=config, thumbnail_size=thumbnail_size, all_rocks=all_rocks)
 
 
 def _pool_work(path: str) -> PhotoOutcome:
-    return photo_outcome(path, _WORKER["library"], _WORKER["config"], _WORKER["thumbnail_size"])
+    return photo_outcome(
+        path, _WORKER["library"], _WORKER["config"], _WORKER["thumbnail_size"], _WORKER["all_rocks"]
+    )
 
 
 class _ProcessBackend:
@@ -485,7 +750,10 @@ class _ProcessBackend:
 
     Workers are forked where that is safe (Linux, and no other thread in this
     process): they start at once, sharing the library already in memory.
-    Elsewhere they start from a fork server that has rockscan loaded.
+    Elsewhere they start from a fork server that has rockscan loaded. Each
+    worker ends with the process that started it (a parent-death signal on
+    Linux, a watch of the parent elsewhere), so a killed triage leaves no
+    orphans.
     """
 
     def __init__(
@@ -522,43 +790,133 @@ class _ProcessBackend:
         self._executor.shutdown(wait=False, cancel_futures=True)
         self._executor = self._start()
 
+    def check(self) -> None:
+        """Local workers cannot go away unnoticed (the pool breaks)."""
+
     def close(self) -> None:
         self._executor.shutdown(wait=True, cancel_futures=True)
 
 
+#: Address schemes a Dask scheduler on another process can be reached by.
+_DASK_SCHEMES = ("tcp", "tls", "ws", "wss", "ucx")
+
+
+def _check_scheduler_address(address: str) -> None:
+    """Refuse an address that cannot work before any connection is tried
+    (distributed would fail late, and leave a half-made client behind)."""
+    scheme, sep, rest = address.partition("://")
+    if not sep:
+        scheme, rest = "tcp", address
+    scheme = scheme.lower()
+    hint = "give the scheduler's address, such as tcp://host:8786"
+    if scheme == "inproc":
+        # inproc://host/pid/n: a scheduler of this very process (a LocalCluster without processes).
+        parts = rest.split("/")
+        if len(parts) == 3 and parts[1] == str(os.getpid()):
+            return
+        raise ParameterError(
+            f"--scheduler {address}: inproc:// reaches only a scheduler inside this process; {hint}"
+        )
+    if scheme not in _DASK_SCHEMES:
+        raise ParameterError(
+            f"--scheduler {address}: unknown address scheme {scheme!r} "
+            f"(known: {', '.join(s + '://' for s in _DASK_SCHEMES)}); {hint}"
+        )
+    if not rest or rest.startswith(":"):
+        raise ParameterError(f"--scheduler {address}: no host in the address; {hint}")
+    if scheme in ("tls", "wss"):
+        from distributed.security import Security
+
+        if Security().get_connection_args("client").get("ssl_context") is None:
+            raise ParameterError(
+                f"--scheduler {address}: {scheme}:// needs TLS certificates; set them in the Dask "
+                "configuration (distributed.comm.tls.ca-file, .client.cert, .client.key)"
+            )
+
+
 class _DaskBackend:
-    """Workers of a Dask distributed cluster."""
+    """Workers of a Dask distributed cluster.
+
+    A worker lost mid-run costs nothing: the scheduler runs its photos again
+    on another. A lost scheduler ends the run at once with a clear error (the
+    rows so far are kept), never a hang.
+    """
 
     def __init__(
-        self, address: str, library: Library, config: ClassifyConfig, thumbnail_size: int, timeout_s: float
+        self,
+        address: str,
+        library: Library,
+        config: ClassifyConfig,
+        thumbnail_size: int,
+        timeout_s: float,
+        all_rocks: bool = False,
     ) -> None:
         try:
             from distributed import Client
         except ImportError:
             raise ParameterError("--scheduler needs dask.distributed: pip install 'rockscan[dask]'") from None
+        _check_scheduler_address(address)
+        self.address = address
+        # distributed logs a traceback for every failed reconnection: the run says it once.
+        self._quiet = _QuietLogger("distributed")
         try:
             self._client = Client(address, timeout=f"{timeout_s}s", set_as_default=False)
-        except (OSError, TimeoutError, ValueError) as exc:
+        except (OSError, TimeoutError, ValueError, TypeError) as exc:
+            self._quiet.restore()
             raise ParameterError(f"cannot reach the Dask scheduler at {address} ({exc})") from None
         # The library travels to each worker once, not with every photo.
         library_future = self._client.scatter(library, broadcast=True, hash=False)
         self._executor = self._client.get_executor(pure=False)
-        self._args = (library_future, config, thumbnail_size)
+        self._args = (library_future, config, thumbnail_size, all_rocks)
         self.slots = max(1, sum(self._client.nthreads().values()))
 
     def submit(self, path: str) -> cf.Future[PhotoOutcome]:
+        self.check()
         return self._executor.submit(photo_outcome, path, *self._args)
 
+    def check(self) -> None:
+        """Raise if the scheduler is gone."""
+        status = getattr(self._client.status, "value", self._client.status)
+        if status != "running":
+            raise ParameterError(
+                f"lost the Dask scheduler at {self.address} (client {status}); the rows so far are kept: "
+                "run again with --resume"
+            )
+
     def restart(self) -> None:
-        """A Dask cluster replaces lost workers itself."""
+        """A Dask cluster replaces lost workers itself; futures are cancelled
+        only when the scheduler is lost."""
+        self.check()
 
     def close(self) -> None:
-        self._executor.shutdown(wait=False)
-        self._client.close()
+        with contextlib.suppress(Exception):
+            self._executor.shutdown(wait=False)
+        with contextlib.suppress(Exception):
+            self._client.close(timeout=2)
+        self._quiet.restore()
+
+
+class _QuietLogger:
+    """Silence a library's loggers (the named one and its children) for a while,
+    then put their levels back."""
+
+    def __init__(self, name: str) -> None:
+        names = [name, *(n for n in logging.root.manager.loggerDict if n.startswith(name + "."))]
+        self._levels = {n: logging.getLogger(n).level for n in names}
+        for n in names:
+            logging.getLogger(n).setLevel(logging.CRITICAL + 1)
+
+    def restore(self) -> None:
+        for n, level in self._levels.items():
+            logging.getLogger(n).setLevel(level)
+
+
+#: How long to wait for a photo before asking the backend whether it is alive, seconds.
+_POLL_S = 2.0
 
 
 def _run_backend(
-    paths: list[str], backend: _ProcessBackend | _DaskBackend, window: int, *, ordered: bool
+    paths: list[str], backend: Any, window: int, *, ordered: bool
 ) -> Iterator[tuple[int, PhotoOutcome]]:
     """Outcomes of ``paths`` as (index, outcome): as they finish, or in order.
 
@@ -566,6 +924,8 @@ def _run_backend(
     stays flat however many photos there are. If a worker process dies (the
     pool breaks), the photos it may have been working on are tried again one
     at a time in a new pool: the one that breaks it again gets an error row.
+    A backend that cannot go on (a lost scheduler) raises from ``check`` or
+    ``restart``.
     """
     pending: dict[cf.Future[PhotoOutcome], int] = {}
     ready: dict[int, PhotoOutcome] = {}
@@ -586,7 +946,10 @@ def _run_backend(
 
     fill()
     while pending:
-        done, _ = cf.wait(pending, return_when=cf.FIRST_COMPLETED)
+        done, _ = cf.wait(pending, timeout=_POLL_S, return_when=cf.FIRST_COMPLETED)
+        if not done:
+            backend.check()
+            continue
         broken = []
         finished: list[tuple[int, PhotoOutcome]] = []
         for future in done:
@@ -611,7 +974,7 @@ def _run_backend(
                 lost = [i for i in lost if i != culprit]
             suspects.extend(i for i in lost if i not in suspects)
         isolating = bool(suspects)
-        for i, outcome in sorted(finished):
+        for i, outcome in sorted(finished, key=lambda item: item[0]):
             if ordered:
                 ready[i] = outcome
             else:
@@ -633,6 +996,7 @@ def triage_folder(
     *,
     observed: str | os.PathLike[str] | None = None,
     progress: Progress | None = None,
+    on_error: Callable[[dict[str, Any]], None] | None = None,
 ) -> TriageSummary:
     """Classify every photo under a folder and write a ranked report.
 
@@ -641,9 +1005,10 @@ def triage_folder(
     folder : path-like
         Walked recursively (:func:`find_photos`).
     report : path-like
-        ``.csv``, ``.jsonl`` or ``.html`` (see :mod:`rockscan.report`). Rows
-        are written as photos finish; the report is ranked when the run ends,
-        or is interrupted.
+        ``.csv``, ``.jsonl``, ``.html`` or ``.geojson`` (see
+        :mod:`rockscan.report`). Rows are written as photos finish; the report
+        is ranked when the run ends, or is interrupted. The report is locked
+        for the run: a second run on it is refused at once.
     library : Library
         The library of interest.
     config : TriageConfig, optional
@@ -653,6 +1018,8 @@ def triage_folder(
         run ends (and every few seconds while it grows).
     progress : callable, optional
         ``progress(done, total)``.
+    on_error : callable, optional
+        Called with each error row as it is written.
 
     Returns
     -------
@@ -660,21 +1027,42 @@ def triage_folder(
 
     Raises
     ------
+    ReportSettingsError
+        If ``resume`` meets a report made with other settings (it is left as it was).
+    ReportBusyError
+        If another run is writing the report.
     ParameterError
         For a missing folder, an unknown report ending, an existing report
-        without ``resume`` or ``overwrite``, or an unreachable scheduler.
+        without ``resume`` or ``overwrite``, an unreachable or lost
+        scheduler, or a report that cannot be written (disk full): the rows
+        written so far are then kept, ranked where possible.
     LibraryError
         If the observed library cannot be read or does not fit ``library``.
     KeyboardInterrupt
         After the report has been ranked with the rows finished so far.
     """
+    config = config or TriageConfig()
+    report = Path(report)
+    report_format(report)
+    listing = find_photos(folder)
+    with lock_report(report):
+        return _triage_locked(listing, folder, report, library, config, observed, progress, on_error)
+
+
+def _triage_locked(
+    listing: PhotoListing,
+    folder: str | os.PathLike[str],
+    report: Path,
+    library: Library,
+    config: TriageConfig,
+    observed: str | os.PathLike[str] | None,
+    progress: Progress | None,
+    on_error: Callable[[dict[str, Any]], None] | None,
+) -> TriageSummary:
     from rockscan.io import load_library, save_library
 
-    config = config or TriageConfig()
     started = time.perf_counter()
-    report = Path(report)
     fmt = report_format(report)
-    listing = find_photos(folder)
     novelty_state: ObservedShapes | None = None
     observed_path = Path(observed) if observed is not None else None
     if observed_path is not None:
@@ -682,7 +1070,9 @@ def triage_folder(
             novelty_state = ObservedShapes.from_file(load_library(observed_path), library, config.novelty)
         else:
             novelty_state = ObservedShapes.from_library(library, config.novelty)
-    journal = ReportJournal(report, resume=config.resume, overwrite=config.overwrite)
+    provenance = report_provenance(library, config, novelty_state)
+    novelty_weight = _novelty_weight(library, config)
+    journal = ReportJournal(report, resume=config.resume, overwrite=config.overwrite, provenance=provenance)
     html = fmt == "html"
     todo = [p for p in listing.photos if photo_key(p) not in journal.done]
     problems = [(p, msg) for p, msg in listing.problems if photo_key(p) not in journal.done]
@@ -701,23 +1091,40 @@ def triage_folder(
             observed_dirty = False
             last_save = time.monotonic()
 
-    def commit(outcome: PhotoOutcome) -> None:
-        nonlocal done, n_interesting, n_novel, novelty_state, observed_dirty, last_refresh, refresh_every
+    def row_of(outcome: PhotoOutcome) -> dict[str, Any]:
+        nonlocal novelty_state, observed_dirty, n_novel
         row = triage_row(outcome.record, library)
         if novelty_state is not None and outcome.radii is not None:
             novelty = novelty_state.assess(outcome.radii)
             row.update(novelty=novelty.score, novel=novelty.novel, nearest_observed=novelty.nearest)
+            row["interest"] = interest_score(
+                row["match"],
+                row["mscore"],
+                row["shape_interest"],
+                novelty=novelty.score,
+                threshold=novelty_state.threshold,
+                novelty_weight=novelty_weight,
+            )
             if novelty.novel:
-                name = observed_name(Path(row["path"]).stem, names)
+                stem = Path(row["path"]).stem + (f"-{row['index']}" if row.get("index") else "")
+                name = observed_name(stem, names)
                 names.add(name)
                 novelty_state = novelty_state.with_shape(name, outcome.radii)
                 observed_dirty = True
                 n_novel += 1
         if html:
             row[THUMBNAIL_KEY] = outcome.thumbnail
-        journal.append(row)
+        return row
+
+    def commit(outcome: PhotoOutcome) -> None:
+        nonlocal done, n_interesting, last_refresh, refresh_every
+        rows = [row_of(rock) for rock in outcome.rocks()]
+        # All rows of a photo in one write: a crash leaves all of them or none.
+        journal.append(rows)
         done += 1
-        n_interesting += bool(row.get("interesting"))
+        n_interesting += sum(bool(row.get("interesting")) for row in rows)
+        if on_error is not None and rows[0].get("error") is not None:
+            on_error(rows[0])
         now = time.monotonic()
         if observed_dirty and now - last_save >= 5.0:
             save_observed()
@@ -730,6 +1137,7 @@ def triage_folder(
             progress(done, total)
 
     interrupted = False
+    failure: RockscanError | None = None
     backend: _ProcessBackend | _DaskBackend | None = None
     try:
         if html:
@@ -742,11 +1150,16 @@ def triage_folder(
         ordered = novelty_state is not None
         if config.scheduler is None and (config.n_workers == 1 or len(todo) <= 1):
             for path in todo:
-                commit(photo_outcome(path, library, config.classify, thumb))
+                commit(photo_outcome(path, library, config.classify, thumb, config.all_rocks))
         elif todo:
             if config.scheduler is not None:
                 backend = _DaskBackend(
-                    config.scheduler, library, config.classify, thumb, config.connect_timeout_s
+                    config.scheduler,
+                    library,
+                    config.classify,
+                    thumb,
+                    config.connect_timeout_s,
+                    config.all_rocks,
                 )
             else:
                 if library.face_config.grid == "polar":
@@ -756,13 +1169,16 @@ def triage_folder(
                     min(config.n_workers, len(todo)),
                     _pool_work,
                     _init_worker,
-                    (library, config.classify, thumb),
+                    (library, config.classify, thumb, config.all_rocks, os.getpid()),
                 )
             window = backend.slots * int(config.window or 4)
             for _, outcome in _run_backend(todo, backend, window, ordered=ordered):
                 commit(outcome)
     except KeyboardInterrupt:
         interrupted = True
+    except RockscanError as exc:
+        # A lost scheduler, a full disk: rank what is done, then say why the run stopped.
+        failure = exc
     except BaseException:
         journal.close()
         if backend is not None:
@@ -774,8 +1190,15 @@ def triage_folder(
     if backend is not None:
         backend.close()
     journal.close()
-    save_observed()
-    ranked: RankedReport = finalize_report(report, title=_title(folder), limit=config.html_limit)
+    try:
+        save_observed()
+        ranked: RankedReport = finalize_report(report, title=_title(folder), limit=config.html_limit)
+    except RockscanError:
+        if failure is None:
+            raise
+        raise failure from None
+    if failure is not None:
+        raise failure
     if interrupted:
         raise KeyboardInterrupt
     return TriageSummary(

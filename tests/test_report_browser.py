@@ -25,7 +25,7 @@ from PIL import Image
 
 from rockscan.io import default_spec_path, read_spec
 from rockscan.render import RenderConfig, render_photo
-from rockscan.report import read_rows
+from rockscan.report import read_provenance, read_rows
 from rockscan.triage import TriageConfig, triage_folder
 
 pytestmark = pytest.mark.skipif(
@@ -220,7 +220,7 @@ def test_every_thumbnail_loads(page, sheet):
     )
     ok = sorted(r["path"] for r in rows if r["error"] is None)
     assert sorted(alt for alt, *_ in images) == ok
-    assert all(complete and (width, height) == (192, 154) for _, complete, width, height in images)
+    assert all(complete and (width, height) == (144, 115) for _, complete, width, height in images)
     assert page.js("document.querySelectorAll('.noimage').length") == 2
 
 
@@ -268,3 +268,32 @@ def test_typing_and_ticking_filter_the_sheet(page, sheet):
     assert _shown(page, "path") == [r["path"] for r in rows if r["error"] is None]
     page.click("#show-errors")
     assert len(_shown(page, "path")) == 10
+
+
+def test_each_card_opens_its_photo(page, sheet):
+    _, rows = sheet
+    links = page.js(
+        "Array.from(document.querySelectorAll('figure.card')).map(c => "
+        "[c.dataset.path, c.querySelector('a.photo').getAttribute('href'), "
+        "decodeURIComponent(new URL(c.querySelector('a.photo').href).pathname)])"
+    )
+    assert len(links) == len(rows)
+    for path, href, target in links:
+        assert not href.startswith("/")  # relative: the report and its photos move together
+        assert Path(target) == Path(path).resolve()
+
+
+def test_the_interest_filter_and_the_footer(page, sheet):
+    report, rows = sheet
+    page.js(
+        "(() => { const f = document.getElementById('min-interest'); f.value = '1'; f.dispatchEvent(new Event('input')); })()"
+    )
+    assert _shown(page, "path") == [r["path"] for r in rows if r["error"] is None and r["interest"] >= 1]
+    page.js(
+        "(() => { const f = document.getElementById('min-interest'); f.value = ''; f.dispatchEvent(new Event('input')); })()"
+    )
+    assert len(_shown(page, "path")) == 10
+    footer = page.js("document.querySelector('footer').innerText")
+    provenance = json.loads(page.js("document.getElementById('provenance-json').textContent"))
+    assert provenance == read_provenance(report)
+    assert provenance["library"]["sha256"] in footer and "rockscan" in footer

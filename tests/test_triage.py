@@ -36,6 +36,7 @@ from rockscan.report import (
     ReportJournal,
     finalize_report,
     rank_key,
+    read_provenance,
     read_rows,
 )
 from rockscan.superformula import SuperformulaParams
@@ -113,7 +114,8 @@ def reference(folder, tmp_path_factory):
 
 
 def _rows(path) -> list[dict]:
-    return list(read_rows(path))
+    """A report's rows; the outline, which only JSON reports carry, left out."""
+    return [{k: v for k, v in row.items() if k != "outline"} for row in read_rows(path)]
 
 
 # ---------------------------------------------------------------- finding photos
@@ -292,7 +294,13 @@ def test_folder_of_50_photos_5_corrupt_files_gives_50_ranked_rows_and_5_errors(f
     assert len(top[0].strip().splitlines()) == 11
     assert top[0].splitlines()[1].split()[0] == "1" and str(ranked[0]["path"]) in top[0].splitlines()[1]
     assert sorted(line.strip() for line in top[1].strip().splitlines()) == sorted(r["error"] for r in errors)
-    assert result.stderr == ""
+    # Off a terminal: progress lines and each error row on stderr, nothing else.
+    lines = result.stderr.splitlines()
+    assert sorted(x.removeprefix("rockscan: error: ") for x in lines if "error: " in x) == sorted(
+        r["error"] for r in errors
+    )
+    progress = [x for x in lines if x.startswith("rockscan: triage: ")]
+    assert len(progress) + len(errors) == len(lines) and progress[-1].startswith("rockscan: triage: 55/55")
 
 
 def test_every_row_is_what_classify_prints_for_the_photo(folder, reference):
@@ -351,7 +359,8 @@ def test_a_killed_run_resumed_ends_with_every_photo_once(folder, reference, tmp_
     rows_before_kill = 0
     while time.monotonic() < deadline and proc.poll() is None:
         if report.exists():
-            rows_before_kill = report.read_bytes().count(b"\n") - 1
+            # Less the provenance and column lines.
+            rows_before_kill = report.read_bytes().count(b"\n") - 2
             if rows_before_kill >= 10:
                 break
         time.sleep(0.005)
@@ -380,7 +389,7 @@ def test_ctrl_c_on_two_workers_ranks_what_is_done_and_says_how_to_finish(folder,
     )
     deadline = time.monotonic() + 120
     while time.monotonic() < deadline and proc.poll() is None:
-        if report.exists() and report.read_bytes().count(b"\n") >= 8:
+        if report.exists() and report.read_bytes().count(b"\n") >= 9:  # provenance and 8 rows
             break
         time.sleep(0.005)
     os.killpg(proc.pid, signal.SIGINT)
@@ -500,8 +509,9 @@ def test_without_output_the_ranked_rows_go_to_stdout(folder, reference):
     root, _, _ = folder
     result = CliRunner().invoke(main, ["triage", str(root), "-j", "1"])
     assert result.exit_code == 1
-    printed = [json.loads(line) for line in result.stdout.splitlines()]
-    assert printed == _rows(reference[1])
+    header, *printed = [json.loads(line) for line in result.stdout.splitlines()]
+    assert [{k: v for k, v in row.items() if k != "outline"} for row in printed] == _rows(reference[1])
+    assert header == {"rockscan_report": read_provenance(reference[1])}
     assert "50 ranked, 5 errors" in result.stderr
 
 
@@ -535,7 +545,9 @@ def test_an_empty_folder_gives_an_empty_report_and_success(tmp_path):
     (tmp_path / "photos").mkdir()
     result = CliRunner().invoke(main, ["triage", str(tmp_path / "photos"), "-o", str(tmp_path / "r.csv")])
     assert result.exit_code == 0, result.output
-    assert (tmp_path / "r.csv").read_text() == ",".join(CSV_COLUMNS) + "\n"
+    provenance, columns = (tmp_path / "r.csv").read_text().splitlines()
+    assert provenance.startswith("# rockscan_report {") and columns == ",".join(CSV_COLUMNS)
+    assert _rows(tmp_path / "r.csv") == []
 
 
 def _run_on_terminal(args: list[str]) -> str:
@@ -600,15 +612,15 @@ def test_html_report_has_a_thumbnail_with_overlay_per_photo(tmp_path, default_li
             continue
         assert row["thumbnail"] in page
         head, data = row["thumbnail"].split(",", 1)
-        assert head == "data:image/jpeg;base64"
+        assert head == "data:image/webp;base64"
         thumb = np.asarray(Image.open(io.BytesIO(base64.b64decode(data))).convert("RGB")).astype(int)
-        assert thumb.shape == (154, 192, 3)  # 160 x 200 scaled to a longer side of 192
-        magenta = (thumb[..., 0] > 150) & (thumb[..., 1] < 90) & (thumb[..., 2] > 150)
-        cyan = (thumb[..., 0] < 90) & (thumb[..., 1] > 150) & (thumb[..., 2] > 150)
-        # The matched shape, drawn around the rock at its centroid.
-        assert magenta.sum() > 100 and cyan.sum() + magenta.sum() > 150
-        rr, cc = np.nonzero(magenta)
-        cx, cy = (np.array(row["centroid"]) + 0.5) * 192 / 200 - 0.5
+        assert thumb.shape == (115, 144, 3)  # 160 x 200 scaled to a longer side of 144
+        blue = (thumb[..., 2] - thumb[..., 0] > 60) & (thumb[..., 2] > 120)
+        yellow = (thumb[..., 0] > 170) & (thumb[..., 1] > 150) & (thumb[..., 2] < 110)
+        # The outline over the matched shape (which shows at its edges), around the rock's centroid.
+        assert blue.sum() > 5 and yellow.sum() > 100
+        rr, cc = np.nonzero(blue | yellow)
+        cx, cy = (np.array(row["centroid"]) + 0.5) * 144 / 200 - 0.5
         assert abs(cc.mean() - cx) < 6 and abs(rr.mean() - cy) < 6
     assert len(photos) == 4
 

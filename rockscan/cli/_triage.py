@@ -4,14 +4,16 @@ from __future__ import annotations
 
 import os
 import shutil
+import signal
 import sys
 import tempfile
+import time
 from typing import Any
 
 import click
 
 from rockscan._choices import NOVELTY_METRICS
-from rockscan.cli import _errors, _library_option, _load_library, _match_options, main
+from rockscan.cli import _errors, _fail, _library_option, _load_library, _match_options, main
 
 
 @main.command("triage")
@@ -22,8 +24,8 @@ from rockscan.cli import _errors, _library_option, _load_library, _match_options
     "report_path",
     type=click.Path(dir_okay=False),
     default=None,
-    help="Report: .csv, .jsonl (JSON lines) or .html, by its ending. "
-    "Default: the ranked JSON lines on standard output.",
+    help="Report: .csv, .jsonl (JSON lines), .html (contact sheet) or .geojson (rock outlines), "
+    "by its ending. Default: the ranked JSON lines on standard output.",
 )
 @_library_option
 @_match_options
@@ -64,13 +66,37 @@ from rockscan.cli import _errors, _library_option, _load_library, _match_options
     help="'face': whole-face distance; 'eigenspace': the paper's distance within face space only.",
 )
 @click.option(
+    "--novelty-weight",
+    type=click.FloatRange(min=0),
+    default=None,
+    help="With --observed, what a novel rock's interest is (default: the library's largest shape "
+    "interest; 0: novelty does not change the ranking).",
+)
+@click.option(
+    "--px-per-mm",
+    "px_per_mm",
+    type=click.FloatRange(min=0, min_open=True),
+    default=None,
+    metavar="F",
+    help="Photo pixels per millimetre: every row also gets area_mm2, equivalent_diameter_mm, "
+    "major_axis_mm and minor_axis_mm.",
+)
+@click.option(
+    "--all",
+    "all_rocks",
+    is_flag=True,
+    help="Rank every rock of every photo, not only the main one (each row with its index).",
+)
+@click.option(
     "--html-limit",
     type=click.IntRange(min=1),
     default=2000,
     show_default=True,
     help="Photos an HTML report shows (its .jsonl beside it keeps all).",
 )
-@click.option("-q", "--quiet", is_flag=True, help="No progress bar and no summary.")
+@click.option(
+    "-q", "--quiet", is_flag=True, help="No progress (bar or lines), no summary; errors still on stderr."
+)
 @_errors
 def triage(
     folder: str,
@@ -84,20 +110,30 @@ def triage(
     observed_path: str | None,
     novelty_threshold: float | None,
     novelty_metric: str,
+    novelty_weight: float | None,
+    px_per_mm: float | None,
+    all_rocks: bool,
     html_limit: int,
     quiet: bool,
 ) -> None:
     """Rank every photo under FOLDER by interest and write a report.
 
     Interest is MScore times the matched shape's interest (a spec shape's
-    'interest = <number>', default 1); a rock with no match scores 0. Rows are
+    'interest = <number>', default 1); a rock with no match scores 0. With
+    --observed, a rock unlike every shape seen so far scores as much as a
+    perfect match of the most wanted shape (--novelty-weight). Rows are
     written as photos finish, so an interrupted run keeps them: run again with
-    --resume to finish it.
+    --resume to finish it. A report records how it was made; --resume with
+    other settings is refused. Off a terminal, progress lines go to stderr
+    every few seconds; error rows go to stderr as they come.
 
-    Exit status: 0 when every photo was classified, 1 when any could not be.
+    Exit status: 0 when every photo was classified, 1 when any could not be
+    (or the run could not go on), 2 for a usage error (resuming with other
+    settings included), 130 when interrupted.
     """
     from rockscan.novelty import NoveltyConfig
     from rockscan.pipeline import ClassifyConfig
+    from rockscan.report import ReportSettingsError
     from rockscan.triage import TriageConfig, triage_folder
 
     if workers is not None and scheduler is not None:
@@ -116,20 +152,28 @@ def triage(
             raise click.BadParameter(str(exc), param_hint="-o/--output") from None
     lib = _load_library(library_path)
     config = TriageConfig(
-        classify=ClassifyConfig(match=match_config),
+        classify=ClassifyConfig(match=match_config, px_per_mm=px_per_mm),
         workers=workers,
         scheduler=scheduler,
         resume=resume,
         overwrite=overwrite,
         novelty=NoveltyConfig(threshold=novelty_threshold, metric=novelty_metric),
+        novelty_weight=novelty_weight,
+        all_rocks=all_rocks,
         html_limit=html_limit,
     )
-    bar = _ProgressBar(enabled=not quiet and sys.stderr.isatty())
+    bar = _Progress(bar=not quiet and sys.stderr.isatty(), lines=not quiet and not sys.stderr.isatty())
     scratch = None if report_path is not None else tempfile.mkdtemp(prefix="rockscan-triage-")
     target = report_path if scratch is None else os.path.join(scratch, "triage.jsonl")
+    # SIGTERM (a batch system's stop) ends the run as Ctrl-C does: the report is ranked first.
+    previous = signal.signal(signal.SIGTERM, _interrupt)
     try:
         try:
-            summary = triage_folder(folder, target, lib, config, observed=observed_path, progress=bar)
+            summary = triage_folder(
+                folder, target, lib, config, observed=observed_path, progress=bar, on_error=bar.error
+            )
+        except ReportSettingsError as exc:
+            _fail(str(exc), 2)
         except KeyboardInterrupt:
             bar.close()
             _print_ranked(scratch, target)
@@ -142,11 +186,16 @@ def triage(
             bar.close()
         _print_ranked(scratch, target)
     finally:
+        signal.signal(signal.SIGTERM, previous)
         if scratch is not None:
             shutil.rmtree(scratch, ignore_errors=True)
     if not quiet:
         _print_summary(summary, folder, to_stderr=report_path is None)
     sys.exit(1 if summary.failed else 0)
+
+
+def _interrupt(signum: int, frame: Any) -> None:
+    raise KeyboardInterrupt
 
 
 def _print_ranked(scratch: str | None, target: str) -> None:
@@ -157,16 +206,39 @@ def _print_ranked(scratch: str | None, target: str) -> None:
         sys.stdout.flush()
 
 
-class _ProgressBar:
-    """tqdm on a terminal, created at the first call (when the total is known)."""
+class _Progress:
+    """Progress of a run: tqdm on a terminal (created at the first call, when the
+    total is known); off a terminal, a line on stderr every few seconds or
+    tenth of the run; each error row on stderr as it comes."""
 
-    def __init__(self, *, enabled: bool) -> None:
-        self.enabled = enabled
+    #: Least time between two progress lines, seconds.
+    EVERY_S = 5.0
+
+    def __init__(self, *, bar: bool, lines: bool = False) -> None:
+        self.enabled = bar
+        self.lines = lines
         self.done = 0
+        self.errors = 0
         self._bar: Any = None
+        self._last = 0.0
+        self._last_done = 0
+        self._started = time.monotonic()
 
     def __call__(self, done: int, total: int) -> None:
         self.done = done
+        if self.lines:
+            now = time.monotonic()
+            step = max(1, total // 10)
+            if done == total or now - self._last >= self.EVERY_S or done - self._last_done >= step:
+                if done or not total:
+                    rate = done / max(now - self._started, 1e-9)
+                    click.echo(
+                        f"rockscan: triage: {done}/{total} photos ({100 * done // max(total, 1)}%), "
+                        f"{self.errors} errors, {rate:.1f} photos/s",
+                        err=True,
+                    )
+                self._last, self._last_done = now, done
+            return
         if not self.enabled:
             return
         if self._bar is None:
@@ -177,6 +249,18 @@ class _ProgressBar:
             self._bar = tqdm.tqdm(total=total, unit="photo", file=sys.stderr, dynamic_ncols=True)
         self._bar.update(done - self._bar.n)
 
+    def error(self, row: dict[str, Any]) -> None:
+        from rockscan.report import shown_text
+
+        self.errors += 1
+        message = row["error"]
+        line = message if message.startswith(row["path"]) else f"{row['path']}: {message}"
+        text = f"rockscan: error: {shown_text(line)}"
+        if self._bar is not None:
+            self._bar.write(text, file=sys.stderr)
+        else:
+            click.echo(text, err=True)
+
     def close(self) -> None:
         if self._bar is not None:
             self._bar.close()
@@ -184,8 +268,11 @@ class _ProgressBar:
 
 
 def _print_summary(summary: Any, folder: str, *, to_stderr: bool) -> None:
+    from rockscan.report import shown_text
+
     def echo(text: str = "") -> None:
-        click.echo(text, err=to_stderr)
+        # Names that are not UTF-8 or hold control characters print escaped.
+        click.echo(shown_text(text) if text else text, err=to_stderr)
 
     echo(
         f"triage of {folder}: {summary.n_found} photos found, {summary.n_resumed} already in the report, "

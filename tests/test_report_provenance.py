@@ -1,0 +1,138 @@
+"""Reports that know how they were made: provenance in every format, resume only with the same settings."""
+
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+from click.testing import CliRunner
+
+from rockscan.cli import main
+from rockscan.io import default_spec_path, load_library, read_spec, save_library
+from rockscan.library import Library
+from rockscan.match import MatchConfig
+from rockscan.pipeline import ClassifyConfig
+from rockscan.render import RenderConfig, render_photo
+from rockscan.report import ReportSettingsError, journal_path, read_provenance, read_rows
+from rockscan.triage import TriageConfig, library_hash, report_provenance, triage_folder
+
+FORMATS = (".csv", ".jsonl", ".html", ".geojson")
+
+
+@pytest.fixture(scope="module")
+def photos(tmp_path_factory) -> Path:
+    """Three small rendered photos."""
+    root = tmp_path_factory.mktemp("prov") / "photos"
+    root.mkdir()
+    specs = [(s.name, s.params) for s in read_spec(default_spec_path())][:3]
+    rng = np.random.default_rng(3)
+    for i, (name, params) in enumerate(specs):
+        photo = render_photo(params, RenderConfig(rows=120, cols=150), rng=rng, name=name)
+        (root / f"{i}-{name}.png").write_bytes(photo.encode(".png"))
+    return root
+
+
+def _files(report: Path) -> dict[str, bytes]:
+    """Every file beside a report, by name."""
+    return {p.name: p.read_bytes() for p in sorted(report.parent.iterdir())}
+
+
+@pytest.mark.parametrize("suffix", FORMATS)
+def test_every_format_records_version_library_hash_method_cutoffs_and_options(
+    photos, tmp_path, default_lib, suffix
+):
+    report = tmp_path / f"r{suffix}"
+    config = TriageConfig(workers=1, classify=ClassifyConfig(match=MatchConfig(mscore_cutoff=0.4)))
+    triage_folder(photos, report, default_lib, config)
+    expected = json.loads(json.dumps(report_provenance(default_lib, config)))
+    assert read_provenance(report) == expected
+    assert expected["library"]["sha256"] == library_hash(default_lib)
+    assert expected["cutoffs"] == {"distance": 0.192, "mscore": 0.4, "residual": 0.41}
+    assert expected["method"]["metric"] == "eigenspace" and expected["options"]["all_rocks"] is False
+    assert expected["rockscan"] == __import__("rockscan").__version__
+    if suffix == ".html":
+        page = report.read_text()
+        footer = page[page.index("<footer>") :]
+        assert library_hash(default_lib) in footer and "mscore 0.4" in footer
+        embedded = footer.split('id="provenance-json">')[1].split("</script>")[0]
+        assert json.loads(embedded) == expected
+    if suffix == ".geojson":
+        assert json.loads(report.read_text())["rockscan_report"] == expected
+
+
+def test_the_library_hash_is_its_content_in_every_process(tmp_path, default_lib):
+    path = tmp_path / "lib.npz"
+    save_library(default_lib, path)
+    assert library_hash(load_library(path)) == library_hash(default_lib)
+    code = (
+        "from rockscan.io import default_library; from rockscan.triage import library_hash; "
+        "print(library_hash(default_library()))"
+    )
+    for threads in ("1", "2"):
+        env = {**os.environ, "OPENBLAS_NUM_THREADS": threads, "OMP_NUM_THREADS": threads}
+        out = subprocess.run(
+            [sys.executable, "-c", code], env=env, capture_output=True, text=True, check=True
+        )
+        assert out.stdout.strip() == library_hash(default_lib)
+    # Another interest weight, or one shape fewer, is another library.
+    shapes = read_spec(default_spec_path())
+    heavier = [*shapes[:-1], type(shapes[-1])(**{**vars(shapes[-1]), "interest": 9.0})]
+    assert library_hash(Library.from_shapes(heavier)) != library_hash(default_lib)
+    assert library_hash(Library.from_shapes(shapes[:-1])) != library_hash(default_lib)
+
+
+@pytest.mark.parametrize(
+    ("suffix", "change", "named"),
+    [
+        (".csv", ["--mscore-cutoff", "0.9"], "cutoffs.mscore 0.283 (report) vs 0.9 (now)"),
+        (".html", ["--method", "paper"], "method.angle_metric"),
+        (".jsonl", ["--all"], "options.all_rocks false (report) vs true (now)"),
+        (".geojson", ["-l", "LIB"], "library.sha256"),
+    ],
+)
+def test_resume_with_other_settings_exits_2_and_leaves_the_report_byte_for_byte(
+    photos, tmp_path, suffix, change, named
+):
+    report = tmp_path / "out" / f"r{suffix}"
+    report.parent.mkdir()
+    first = CliRunner().invoke(main, ["triage", str(photos), "-o", str(report), "-j", "1", "-q"])
+    assert first.exit_code == 0, first.output
+    # Make the report look like an interrupted run: one row short.
+    lines = journal_path(report).read_bytes().splitlines(keepends=True)
+    journal_path(report).write_bytes(b"".join(lines[:-1]))
+    before = _files(report)
+    change = [str(_small_library(tmp_path)) if a == "LIB" else a for a in change]
+    result = CliRunner().invoke(
+        main, ["triage", str(photos), "-o", str(report), "-j", "1", "--resume", *change]
+    )
+    assert result.exit_code == 2, result.output
+    (line,) = result.stderr.splitlines()
+    assert line.startswith(f"rockscan: error: {report} was made with other settings (") and named in line
+    assert "--overwrite" in line
+    assert _files(report) == before
+    # With the same settings it resumes.
+    again = CliRunner().invoke(main, ["triage", str(photos), "-o", str(report), "-j", "1", "--resume"])
+    assert again.exit_code == 0, again.output
+    assert "2 already in the report, 1 classified" in again.stdout
+
+
+def _small_library(tmp_path: Path) -> Path:
+    path = tmp_path / "small.npz"
+    save_library(Library.from_shapes(read_spec(default_spec_path())[:4]), path)
+    return path
+
+
+def test_a_report_that_records_nothing_is_not_resumed(photos, tmp_path, default_lib):
+    report = tmp_path / "old.jsonl"
+    row = {"path": "x.png", "error": "x.png: file is empty"}
+    report.write_text(json.dumps(row) + "\n")
+    with pytest.raises(ReportSettingsError, match="does not record how it was made"):
+        triage_folder(photos, report, default_lib, TriageConfig(workers=1, resume=True))
+    assert report.read_text() == json.dumps(row) + "\n"
+    # It still reads.
+    assert [r["path"] for r in read_rows(report)] == ["x.png"]
