@@ -161,14 +161,14 @@ def test_default_names_the_built_in_library(runner, tmp_path):
     assert json.loads(matched.stdout)["nearest"] == "three-faced-blunt"
 
 
-def test_plot_alone_draws_beside_with_the_librarys_name(runner, tmp_path):
-    with runner.isolated_filesystem(temp_dir=tmp_path):
-        result = runner.invoke(main, ["library", "show", str(default_spec_path()), "--plot"])
-        assert result.exit_code == 0, result.output
-        assert result.stderr == "rockscan: drew default_library.png\n"
-        assert os.path.getsize("default_library.png") > 10_000
-        named = runner.invoke(main, ["library", "show", "default", "--plot", "mine.png", "-q"])
-        assert named.exit_code == 0 and named.stderr == "" and os.path.isfile("mine.png")
+def test_plot_alone_draws_beside_with_the_librarys_name(runner, tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    result = runner.invoke(main, ["library", "show", str(default_spec_path()), "--plot"])
+    assert result.exit_code == 0, result.output
+    assert result.stderr == "rockscan: drew default_library.png\n"
+    assert os.path.getsize("default_library.png") > 10_000
+    named = runner.invoke(main, ["library", "show", "default", "--plot", "mine.png", "-q"])
+    assert named.exit_code == 0 and named.stderr == "" and os.path.isfile("mine.png")
 
 
 # ---------------------------------------------------------------- examples

@@ -171,7 +171,7 @@ def _expand_stdin(photos: tuple[str, ...]) -> tuple[str, ...]:
         raise click.BadParameter("'-' (paths from standard input) may be given once", param_hint="PHOTO")
     if "-" not in photos:
         return photos
-    stream = click.get_text_stream("stdin")
+    stream = sys.stdin
     if stream.isatty():
         raise click.BadParameter(
             "'-' reads photo paths from standard input, which is a terminal: pipe them in "
