@@ -114,7 +114,8 @@ def test_default_threshold_is_half_the_median_library_spacing(small_lib):
         dist = _brute_force_distances(small_lib.radii[k], small_lib)
         dist[k] = np.inf
         spacing.append(dist.min())
-    assert default_threshold(small_lib) == pytest.approx(0.5 * np.median(spacing), rel=1e-9)
+    # rel 1e-7: numpy before 2.0 computes the scan's complex64 FFTs in double.
+    assert default_threshold(small_lib) == pytest.approx(0.5 * np.median(spacing), rel=1e-7)
 
 
 def test_default_threshold_of_the_builtin_library(default_lib):

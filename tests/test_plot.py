@@ -136,7 +136,8 @@ def test_plot_library_draws_every_shape(tmp_path):
     library = default_library()
     plot_library(library, tmp_path / "lib.png", columns=5)
     with Image.open(tmp_path / "lib.png") as im:
-        assert im.size == (1100, 720)
+        # 11 x 7.2 inches at 100 dpi; matplotlib 3.10 rounds the 720 rows down to 719.
+        assert im.size[0] == 1100 and im.size[1] in (719, 720)
     with pytest.raises(ParameterError, match="columns"):
         plot_library(library, tmp_path / "lib.png", columns=0)
 
