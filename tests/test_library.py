@@ -65,7 +65,7 @@ def test_library_from_radii_and_given_faces():
 @pytest.mark.parametrize(
     ("names", "radii", "message"),
     [
-        (["a"], np.ones((1, 360)), "at least two shapes"),
+        ([], np.ones((0, 360)), "at least one shape"),
         (["a", "a"], np.ones((2, 360)) + np.arange(2)[:, None], "unique; repeated: a"),
         (["a", "B"], np.ones((2, 360)), "must match"),
         (["a", "b"], np.ones((3, 360)), "one row per name"),

@@ -171,16 +171,20 @@ def test_reported_distance_is_the_ranked_distance(default_lib, default_specs):
     rng = np.random.default_rng(5)
     for spec in default_specs[:5]:
         noisy = turned_radii(spec.params, 70.0) * (1 + 0.05 * rng.normal(size=360))
-        m = match_radii(noisy, default_lib)
-        assert MatchConfig().resolved_metric(default_lib) == "eigenspace"
+        m = match_radii(noisy, default_lib, PAPER_EXACT)
         k = default_lib.index(m.nearest)
         assert m.distance == m.distances[k] == m.distances.min()
         assert m.mscore == pytest.approx(1 - m.distances[k] / m.distances.mean())
+        # The default ranks by the sensor distance and keeps the paper's outWeights for MScore.
+        d = match_radii(noisy, default_lib)
+        assert d.nearest == spec.name
+        assert d.mscore == pytest.approx(1 - d.distances.min() / d.distances.mean())
+        assert d.sensor_distance == d.sensor_distances[default_lib.index(d.nearest)]
 
 
-def test_a_two_shape_library_is_matched_by_whole_faces():
+def test_a_two_shape_library_is_matched_by_the_sensor_distance():
     # One eigenface: a turned sample's projection can reach either shape, so
-    # "auto" ranks by the whole-face distance.
+    # "auto" ranks by the sensor distance, which does not thin out with size.
     lib = Library.from_shapes(
         [
             ShapeSpec("disc", SuperformulaParams(0, 0, 1, 1, 1)),
@@ -188,7 +192,7 @@ def test_a_two_shape_library_is_matched_by_whole_faces():
         ]
     )
     assert lib.basis.n_components == 1
-    assert MatchConfig().resolved_metric(lib) == "face"
+    assert MatchConfig().resolved_metric(lib) == "sensor"
     rng = np.random.default_rng(8)
     for alpha in (0.0, 17.0, 45.0, 90.0):
         noisy = turned_radii(PAPER_SHAPES["three-faced-blunt"], alpha) * (1 + 0.01 * rng.normal(size=360))
