@@ -19,8 +19,9 @@ or adds a test (``mscore_cutoff``, the paper's gamma; ``residual_cutoff``, Turk
 defines it but decides nothing by default: with one shape it is 0 or 1 by
 construction and with two it only compares two distances.
 
-The default ranks by the sensor distance too (``metric="auto"``); the paper's
-exact method is ``MatchConfig(metric="eigenspace", angle_metric="eigenspace")``.
+The default (``metric="auto"``) ranks a noisy sample by the sensor distance too,
+and a clean one by the paper's eigenspace distance; the paper's exact method is
+``MatchConfig(metric="eigenspace", angle_metric="eigenspace")``.
 
 Turning a sample shifts its face's sample term ``q`` along theta, so the scan
 correlates ``q`` with Fourier templates of the eigenfaces: all ``n_angles``

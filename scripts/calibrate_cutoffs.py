@@ -44,9 +44,7 @@ def figure(path: str, *, tolerance: float = 0.2) -> None:
     rng = np.random.default_rng(0)
     for i, k in enumerate(cal.samples.shapes):
         y = n - 1 - i
-        # A measurement whose distance is all noise scores 0: drawn at the left edge.
-        inside = np.maximum(cal.samples.inside[i], 3e-3)
-        outside = np.maximum(cal.samples.outside[i], 3e-3)
+        inside, outside = cal.samples.inside[i], cal.samples.outside[i]
         ax.scatter(inside, y + 0.12 + 0.08 * rng.uniform(-1, 1, inside.size), s=9, color="#1f77b4", alpha=0.7)
         ax.scatter(
             outside, y - 0.12 + 0.08 * rng.uniform(-1, 1, outside.size), s=9, color="#d62728", alpha=0.7
@@ -55,9 +53,15 @@ def figure(path: str, *, tolerance: float = 0.2) -> None:
         if cal.crowded[k]:
             ax.text(cal.cutoffs[k], y + 0.38, "crowded", fontsize=6, ha="center")
     ax.set_yticks(np.arange(n)[::-1], [library.names[k] for k in cal.samples.shapes], fontsize=8)
-    ax.set_xlabel("sensor distance over the sample's allowance (what a cutoff meets)", fontsize=9)
-    ax.set_xscale("log")
-    ax.scatter([], [], s=9, color="#1f77b4", label=f"in library: outline noise 0-{100 * tolerance:g}%")
+    ax.set_xlabel(
+        "sensor distance, the sample's own noise taken out, over its allowance (what a cutoff meets; "
+        "0: all noise)",
+        fontsize=9,
+    )
+    ax.set_xlim(left=-0.05)
+    ax.scatter(
+        [], [], s=9, color="#1f77b4", label=f"in library: outline noise {100 * tolerance:g}% (the tolerance)"
+    )
     ax.scatter([], [], s=9, color="#d62728", label="out of library: shapes at the library's spacing")
     ax.plot([], [], color="black", lw=2, label="calibrated cutoff")
     ax.legend(fontsize=8, loc="upper center", bbox_to_anchor=(0.5, -0.09), ncol=3, frameon=False)

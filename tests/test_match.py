@@ -133,6 +133,7 @@ def test_cutoffs_decide_interesting_but_not_nearest(paper_lib):
     radii = shape_radii(PAPER_NEAR["six-pointed-star"], 360)
     strict = match_radii(radii, paper_lib, MatchConfig(mscore_cutoff=0.99))
     assert strict.nearest == "six-pointed-star" and strict.match is None and not strict.interesting
+    assert strict.decided_by == "mscore-cutoff"
     tight = match_radii(radii, paper_lib, MatchConfig(distance_cutoff=1e-6, mscore_cutoff=0.0))
     assert not tight.interesting
     loose = match_radii(radii, paper_lib, MatchConfig(distance_cutoff=1.0, mscore_cutoff=0.5))
@@ -206,7 +207,8 @@ def test_the_residual_cutoff_rejects_samples_far_from_face_space(default_lib, de
     noisy = radii * (1 + 0.08 * rng.normal(size=360))
     m = match_radii(noisy, default_lib)
     assert m.residual > 0
-    assert not match_radii(noisy, default_lib, MatchConfig(residual_cutoff=0.5 * m.residual)).interesting
+    cut = match_radii(noisy, default_lib, MatchConfig(residual_cutoff=0.5 * m.residual))
+    assert not cut.interesting and cut.decided_by == "residual-cutoff"
     kept = match_radii(
         noisy,
         default_lib,
