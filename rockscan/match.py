@@ -204,9 +204,6 @@ class Match:
             "interesting": self.interesting,
             "residual": self.residual,
             "symmetry": self.symmetry,
-            "sensor_distance": self.sensor_distance,
-            "cutoff_distance": self.cutoff_distance,
-            "decided_by": self.decided_by,
         }
 
 
