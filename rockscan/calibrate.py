@@ -135,14 +135,17 @@ class SensorModel:
 def log_noise_variance(noise: float) -> float:
     """Variance of ``log(max(1 + e, 0.05))`` for ``e`` normal with standard deviation ``noise``.
 
-    The outline noise as the log radii see it (Gauss-Hermite quadrature, exact
+    The outline noise as the log radii see it (quadrature on a fine grid, exact
     to far below what matters here).
     """
-    nodes, weights = np.polynomial.hermite_e.hermegauss(80)
+    # A fine grid over the normal, not Gauss-Hermite nodes: those come from an
+    # eigen solver whose threads would leave later results thread-dependent.
+    nodes = np.linspace(-9.0, 9.0, 9001)
     values = np.log(np.maximum(1.0 + noise * nodes, _MIN_FACTOR))
+    weights = np.exp(-0.5 * nodes**2)
     weights = weights / weights.sum()
-    mean = float(weights @ values)
-    return float(weights @ (values - mean) ** 2)
+    mean = float(np.sum(weights * values))
+    return float(np.sum(weights * (values - mean) ** 2))
 
 
 def simulate_radii(
@@ -435,7 +438,9 @@ def _full_sum(values: NDArray[np.float64], n: int) -> NDArray[np.float64]:
     factor[0] = 1.0
     if n % 2 == 0:
         factor[-1] = 1.0
-    return values @ factor
+    # Elementwise, not BLAS: a threaded BLAS call here would make later results
+    # depend on the thread count in the last digit.
+    return np.sum(values * factor, axis=-1)
 
 
 @dataclass(frozen=True, eq=False)
@@ -682,7 +687,7 @@ def _spacing(
     n_candidates = min(8, n_shapes - 1)
     for start in range(0, chosen.size, 256):
         block = chosen[start : start + 256]
-        bound = sq[block, None] + sq[None, :] - 2.0 * mags[block] @ mags.T
+        bound = sq[block, None] + sq[None, :] - 2.0 * np.einsum("bf,kf->bk", mags[block], mags)
         bound[np.arange(block.size), block] = np.inf
         candidates = np.argpartition(bound, n_candidates - 1, axis=1)[:, :n_candidates]
         for i, k in enumerate(block):
@@ -749,13 +754,13 @@ def _outside(
     spectrum = rng.standard_normal((b, n_outside, n_freq)) + 1j * rng.standard_normal((b, n_outside, n_freq))
     spectrum *= np.sqrt(metric.weights) * (np.arange(n_freq) > 0)
     fields = np.fft.irfft(spectrum, n=n, axis=-1)
-    fields /= np.linalg.norm(fields, axis=-1, keepdims=True)
+    fields /= np.sqrt(np.sum(fields**2, axis=-1, keepdims=True))
     if radii.shape[0] > 1:
         # k continued beyond itself, away from its neighbour at its best rotation.
         shift = np.argmin(metric.squared_distances(radii[neighbour], block), axis=1)
         turned = np.stack([np.roll(radii[j], -int(s)) for j, s in zip(neighbour, shift, strict=True)])
         away = log_k - np.log(turned / turned.mean(axis=1, keepdims=True))
-        away /= np.maximum(np.linalg.norm(away, axis=1, keepdims=True), 1e-12)
+        away /= np.maximum(np.sqrt(np.sum(away**2, axis=1, keepdims=True)), 1e-12)
         fields[:, n_random:] = away[:, None, :] + 0.3 * fields[:, n_random:]
     # Out-of-library shapes lie at least the library's typical spacing from every
     # shape: a shape closer to its neighbour than that is measured at that spacing.
