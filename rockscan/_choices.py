@@ -12,8 +12,8 @@ FACE_KINDS = ("information", "information-shape", "radii")
 GRIDS = ("polar", "cartesian")
 #: What a match distance measures.
 METRICS = ("eigenspace", "face")
-#: What ranks library shapes: a metric, or "auto" (chosen by the library's size).
-RANK_METRICS = ("auto", *METRICS)
+#: What ranks library shapes: the sensor-model distance, a face metric, or "auto" (the sensor distance).
+RANK_METRICS = ("auto", "sensor", *METRICS)
 #: What a novelty score measures (the whole face by default; see rockscan.novelty).
 NOVELTY_METRICS = ("face", "eigenspace")
 #: Matcher presets of the command line: rockscan's default and the paper's exact method.
@@ -22,3 +22,5 @@ METHODS = ("default", "paper")
 RENDER_POLARITIES = ("random", "light", "dark")
 #: Rock polarity settings of the segmentation.
 POLARITIES = ("auto", "dark", "light")
+#: Outline noise a library tolerates unless told otherwise: the paper's claim of 20%.
+DEFAULT_TOLERANCE = 0.2

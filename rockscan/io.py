@@ -10,10 +10,12 @@ its version. Anything else is rejected with a one-line :class:`LibraryError`.
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import math
 import os
 import tomllib
+import warnings
 import zipfile
 import zlib
 from collections.abc import Sequence
@@ -55,6 +57,8 @@ LIBRARY_VERSION = 1
 IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".tif", ".tiff", ".bmp")
 
 _ARRAYS = ("radii", "interest", "symmetry", "mean", "components", "eigenvalues", "weights")
+#: Per-shape calibration arrays (absent from files written before cutoffs were stored).
+_CUTOFF_ARRAYS = ("cutoffs", "cutoff_spacing", "cutoff_crowded", "cutoff_calibrated")
 _SHAPE_KEYS = {"name", "interest", "images", *SuperformulaParams.names()}
 
 
@@ -212,6 +216,13 @@ def save_library(library: Library, path: str | os.PathLike[str]) -> None:
         "params": [p.as_dict() if p is not None else None for p in library.params],
         "face": library.face_config.to_dict(),
     }
+    cutoff_arrays = {}
+    if library.calibration is not None:
+        cal = library.calibration
+        metadata["calibration"] = cal.to_dict()
+        cutoff_arrays = dict(
+            zip(_CUTOFF_ARRAYS, (cal.cutoffs, cal.spacing, cal.crowded, cal.calibrated), strict=True)
+        )
     arrays = {
         "metadata": np.frombuffer(json.dumps(metadata).encode("utf-8"), dtype=np.uint8),
         "radii": library.radii,
@@ -221,6 +232,7 @@ def save_library(library: Library, path: str | os.PathLike[str]) -> None:
         "components": library.basis.components,
         "eigenvalues": library.basis.eigenvalues,
         "weights": library.basis.weights,
+        **cutoff_arrays,
     }
     path = Path(path)
     tmp = path.with_name(f".{path.name}.tmp{os.getpid()}")
@@ -277,6 +289,7 @@ def load_library(path: str | os.PathLike[str]) -> Library:
                     raise LibraryError(f"{path}: not a rockscan library (missing {', '.join(missing)})")
                 raw = archive["metadata"]
                 arrays = {k: archive[k] for k in _ARRAYS}
+                arrays.update({k: archive[k] for k in _CUTOFF_ARRAYS if k in archive.files})
     except LibraryError:
         raise
     except (zipfile.BadZipFile, zlib.error, EOFError) as exc:
@@ -304,7 +317,7 @@ def load_library(path: str | os.PathLike[str]) -> Library:
         for name in ("mean", "components", "weights"):
             if not np.all(np.isfinite(getattr(basis, name))):
                 raise LibraryError(f"library {name} holds non-finite values")
-        return Library(
+        library = Library(
             names=_library_names(meta, path),
             radii=arrays["radii"],
             params=tuple(params),
@@ -312,9 +325,55 @@ def load_library(path: str | os.PathLike[str]) -> Library:
             symmetry=arrays["symmetry"],
             face_config=face,
             basis=basis,
+            calibration=_read_calibration(meta, arrays, path),
         )
+    except ParameterError as exc:
+        raise LibraryError(f"{path}: library cutoffs are inconsistent ({_first_line(exc)})") from None
     except (KeyError, TypeError, ValueError, OverflowError) as exc:
         raise LibraryError(f"{path}: library file is inconsistent ({_first_line(exc)})") from None
+    if library.calibration is None:
+        from rockscan.calibrate import calibrate
+
+        # A file from before cutoffs were stored: its shapes are all that is
+        # needed to calibrate them as `library build` now does.
+        warnings.warn(
+            f"{path}: written before libraries stored their cutoffs; calibrated them now at the default "
+            "tolerance (rebuild it with `rockscan library build` to store them)",
+            RecalibratedWarning,
+            stacklevel=2,
+        )
+        calibration = calibrate(library.radii)
+        library = dataclasses.replace(
+            library, calibration=dataclasses.replace(calibration, note="calibrated when loaded")
+        )
+    return library
+
+
+class RecalibratedWarning(UserWarning):
+    """A library file without stored cutoffs was calibrated when it was loaded."""
+
+
+def _read_calibration(meta: dict[str, object], arrays: dict[str, NDArray], path: Path) -> object:
+    """The stored calibration, or None for a file written before cutoffs were stored."""
+    from rockscan.calibrate import Calibration
+
+    info = meta.get("calibration")
+    if info is None:
+        return None
+    missing = [k for k in _CUTOFF_ARRAYS if k not in arrays]
+    if not isinstance(info, dict) or missing:
+        what = ", ".join(missing) or "settings"
+        raise LibraryError(f"{path}: library cutoffs are incomplete (missing {what})")
+    return Calibration(
+        cutoffs=arrays["cutoffs"],
+        spacing=arrays["cutoff_spacing"],
+        crowded=arrays["cutoff_crowded"],
+        calibrated=arrays["cutoff_calibrated"],
+        tolerance=float(info["tolerance"]),
+        seed=int(info.get("seed", 0)),
+        version=int(info.get("version", 1)),
+        note=str(info.get("note", "")),
+    )
 
 
 def _library_metadata(raw: object, path: Path) -> dict[str, object]:

@@ -3,7 +3,9 @@
 A library is built from named shapes, each a Superformula (the paper's way) or
 radii measured from example rocks. Every shape is put in the frame a photo's
 rock is measured in: radii about the outline's own area centroid, normalised to
-a mean radius of 1. Their faces train the eigenface basis.
+a mean radius of 1. Their faces train the eigenface basis, and the library
+calibrates its own per-shape cutoffs (:mod:`rockscan.calibrate`) for the
+outline noise it is meant to tolerate.
 """
 
 from __future__ import annotations
@@ -18,6 +20,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from rockscan._threads import one_blas_thread
+from rockscan.calibrate import DEFAULT_TOLERANCE, Calibration, SensorMetric, calibrate
 from rockscan.eigen import EigenBasis
 from rockscan.errors import LibraryError, ParameterError, SpecError
 from rockscan.information import FaceConfig, information_face, reference_weights
@@ -124,6 +127,9 @@ class Library:
         Order of rotational symmetry (0 for a circle).
     face_config : FaceConfig
     basis : EigenBasis
+    calibration : Calibration or None
+        Per-shape cutoffs; None calibrates them on first use (at the default
+        tolerance), as for a library file written before cutoffs were stored.
     """
 
     names: tuple[str, ...]
@@ -133,13 +139,12 @@ class Library:
     symmetry: NDArray[np.int64]
     face_config: FaceConfig
     basis: EigenBasis
+    calibration: Calibration | None = None
 
     def __post_init__(self) -> None:
         n = len(self.names)
-        if n < 2:
-            raise LibraryError(
-                "a library needs at least two shapes (MScore compares a match with the others)"
-            )
+        if n < 1:
+            raise LibraryError("a library needs at least one shape")
         if len(set(self.names)) != n:
             dupes = sorted({x for x in self.names if self.names.count(x) > 1})
             raise LibraryError(f"shape names must be unique; repeated: {', '.join(dupes)}")
@@ -155,6 +160,8 @@ class Library:
         for name, value in (("radii", radii), ("interest", self.interest)):
             if not np.all(np.isfinite(value)):
                 raise LibraryError(f"library {name} must be finite")
+        if self.calibration is not None and self.calibration.cutoffs.shape != (n,):
+            raise LibraryError("library cutoffs must be one per shape")
         radii.setflags(write=False)
         object.__setattr__(self, "radii", radii)
         object.__setattr__(self, "names", tuple(self.names))
@@ -172,6 +179,9 @@ class Library:
         interest: ArrayLike | None = None,
         faces: ArrayLike | None = None,
         n_components: int | None = None,
+        tolerance: float = DEFAULT_TOLERANCE,
+        examples: Sequence[ArrayLike | None] | None = None,
+        calibration: Calibration | None = None,
     ) -> Library:
         """Build a library from radii (one row per shape, at the matcher's angles).
 
@@ -189,13 +199,26 @@ class Library:
             several examples).
         n_components : int, optional
             Keep at most this many eigenfaces (default: all non-zero).
+        tolerance : float
+            Outline noise (standard deviation, 0.2 = 20%) a sample of a shape
+            may carry and still belong to it; the cutoffs are calibrated for it
+            (:func:`rockscan.calibrate.calibrate`).
+        examples : sequence of (n_examples, n_angles) array_like or None, optional
+            Per shape, the radii of the example photos it was made from (one
+            orientation), so that the spread between them counts in its cutoff.
+        calibration : Calibration, optional
+            Cutoffs to use as they are instead of calibrating.
+
+        Notes
+        -----
+        A one-shape library has no eigenface (the face space of one face is a
+        point): every eigenspace distance is 0 and MScore is 1 by
+        construction; the calibrated sensor distance decides, as for any size.
         """
         config = face_config or FaceConfig()
         names = tuple(names)
-        if len(names) < 2:
-            raise LibraryError(
-                "a library needs at least two shapes (MScore compares a match with the others)"
-            )
+        if len(names) < 1:
+            raise LibraryError("a library needs at least one shape")
         for name in names:
             if not isinstance(name, str) or not NAME_PATTERN.match(name):
                 raise LibraryError(f"shape name {name!r} must match [a-z0-9-]+")
@@ -209,7 +232,18 @@ class Library:
         if face_array.shape != (len(names), *config.face_shape):
             raise LibraryError(f"faces must be (n_shapes, {', '.join(map(str, config.face_shape))})")
         try:
-            basis = EigenBasis.from_faces(face_array, n_components=n_components)
+            if len(names) == 1:
+                flat = face_array.reshape(1, -1)
+                basis = EigenBasis(
+                    mean=flat[0],
+                    components=np.empty((0, flat.shape[1])),
+                    eigenvalues=np.empty(0),
+                    weights=np.zeros((1, 0)),
+                )
+            else:
+                basis = EigenBasis.from_faces(face_array, n_components=n_components)
+            if calibration is None:
+                calibration = calibrate(radii, examples=examples, tolerance=tolerance)
         except ParameterError as exc:
             raise LibraryError(str(exc)) from None
         return cls(
@@ -220,6 +254,7 @@ class Library:
             symmetry=np.array([symmetry_order(r) for r in radii], dtype=np.int64),
             face_config=config,
             basis=basis,
+            calibration=calibration,
         )
 
     @classmethod
@@ -269,6 +304,26 @@ class Library:
         """The library faces as the basis holds them: ``Psi + Omega_k U``."""
         flat = self.basis.mean + self.basis.weights @ self.basis.components
         return flat.reshape(len(self), *self.face_config.face_shape)
+
+    @cached_property
+    def sensor_metric(self) -> SensorMetric:
+        """The sensor-model distance of this library (see :mod:`rockscan.calibrate`)."""
+        return SensorMetric.from_radii(self.radii, self.tolerance)
+
+    @property
+    def tolerance(self) -> float:
+        """The outline noise the library's cutoffs are calibrated for."""
+        return self.calibration.tolerance if self.calibration is not None else DEFAULT_TOLERANCE
+
+    @cached_property
+    def _calibrated_on_use(self) -> Calibration:
+        return calibrate(self.radii)
+
+    @property
+    def cutoffs(self) -> NDArray[np.float64]:
+        """Per-shape cutoffs on the sensor distance (over the sample's allowance), ``(n_shapes,)``."""
+        calibration = self.calibration if self.calibration is not None else self._calibrated_on_use
+        return calibration.cutoffs
 
     @cached_property
     def weights_map(self) -> NDArray[np.float64]:

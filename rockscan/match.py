@@ -4,10 +4,24 @@ For a sample with radii r and every library shape k this computes the paper's
 eigenspace distance ``eps_k`` (outWeight) at every rotation of the sample, keeps
 each shape's best rotation ``w_k = min_alpha eps_k(alpha)``, and reports
 
-* the nearest shape ``argmin_k w_k`` and its refined angle,
+* the nearest shape and its refined angle,
 * ``MScore = 1 - min(w) / mean(w)`` (paper-notes.md, note 9),
-* whether it passes the cutoffs: ``w_min <= distance_cutoff`` (the paper's theta)
-  and ``MScore > mscore_cutoff`` (the paper's gamma).
+* whether the sample belongs to the library (``interesting``).
+
+The decision, for a library of any size (docs/decision.md): the sample is
+interesting when its distance to the nearest shape k under the sensor model
+(:class:`rockscan.calibrate.SensorMetric`) is at most k's own cutoff, which
+the library calibrated for itself at build from simulated samples
+(:func:`rockscan.calibrate.calibrate`). A cutoff given in :class:`MatchConfig`
+replaces it (``distance_cutoff``, the paper's theta on the ranked distance w)
+or adds a test (``mscore_cutoff``, the paper's gamma; ``residual_cutoff``, Turk
+& Pentland's distance from face space). MScore is reported as the paper
+defines it but decides nothing by default: with one shape it is 0 or 1 by
+construction and with two it only compares two distances.
+
+The default (``metric="auto"``) ranks a noisy sample by the sensor distance too,
+and a clean one by the paper's eigenspace distance; the paper's exact method is
+``MatchConfig(metric="eigenspace", angle_metric="eigenspace")``.
 
 Turning a sample shifts its face's sample term ``q`` along theta, so the scan
 correlates ``q`` with Fourier templates of the eigenfaces: all ``n_angles``
@@ -23,7 +37,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from rockscan._choices import METRICS
+from rockscan._choices import METRICS, RANK_METRICS
 from rockscan._threads import one_blas_thread
 from rockscan.errors import ParameterError
 from rockscan.information import information_face, sample_term
@@ -33,7 +47,7 @@ if TYPE_CHECKING:
 
 
 __all__ = [
-    "DEFAULT_CUTOFFS",
+    "DECIDERS",
     "METRICS",
     "Match",
     "MatchConfig",
@@ -42,28 +56,16 @@ __all__ = [
     "rotation_scores",
 ]
 
-#: Default cutoffs (distance_cutoff, mscore_cutoff, residual_cutoff) per face
-#: kind: the paper's theta (largest w of the nearest shape, w measured as the
-#: default MatchConfig ranks), its gamma (MScore must exceed it), and Turk &
-#: Pentland's limit on the distance from face space. Chosen by
-#: scripts/calibrate_cutoffs.py on rendered rocks of the default library's
-#: shapes (clean, outline noise up to 10%, near shapes, hard photos; 336) and
-#: out-of-library distractors (112), seed 77001: the pair that maximises the
-#: smaller of acceptance and rejection, in the middle of the pairs that tie,
-#: then the residual limit that does the same. Measured there: information
-#: 99.4% accepted, 100% rejected (99.1% without the residual limit); radii 99.1%
-#: and 100% (92% and 92% without). The 24 coins of skimage.data.coins() pass
-#: all three kinds (docs/accuracy.md, "Cutoffs").
-DEFAULT_CUTOFFS: dict[str, tuple[float, float, float]] = {
-    "information": (0.192, 0.283, 0.41),
-    "information-shape": (0.187, 0.259, 0.364),
-    "radii": (0.0652, 0.561, 0.125),
-}
-
-
-#: With "auto", the eigenspace metric needs face space of at least this many
-#: dimensions (a library of this many shapes plus one); see MatchConfig.
+#: "auto" ranks by the eigenspace distance samples whose estimated noise is
+#: below this fraction of the library's tolerance, in a face space of at least
+#: AUTO_MIN_COMPONENTS dimensions (thinner ones let a turned sample's projection
+#: land on any shape); all others by the sensor distance.
+AUTO_CLEAN_FRACTION = 0.25
 AUTO_MIN_COMPONENTS = 3
+
+#: What decided a match (``Match.decided_by``): the library's calibrated cutoff
+#: of the nearest shape, or a cutoff given in MatchConfig.
+DECIDERS = ("calibrated-cutoff", "distance-cutoff", "mscore-cutoff", "residual-cutoff")
 
 
 @dataclass(frozen=True)
@@ -73,30 +75,36 @@ class MatchConfig:
     Parameters
     ----------
     distance_cutoff : float or None
-        The paper's theta: the best shape must be within this eigenspace
-        distance. None takes the default for the library's face kind.
+        The paper's theta: the best shape must be within this distance ``w``
+        (of the ranking metric). None (default) takes the library's calibrated
+        cutoff of the nearest shape on the sensor distance instead.
     mscore_cutoff : float or None
-        The paper's gamma: MScore must exceed it. None takes the default.
+        The paper's gamma: MScore must also exceed it. None: no MScore test.
     residual_cutoff : float or None
         Largest distance of the sample's face from face space (Turk &
-        Pentland's second test, ``Match.residual``). None takes the default,
-        measured like the others (see ``DEFAULT_CUTOFFS``).
+        Pentland's second test, ``Match.residual``). None: no such test.
     scan : bool
         Scan all rotations (default). False matches the sample as it stands,
         as in the paper's Fig. 13.
     refine : bool
         Refine the best angle below the scan step by a parabola through the
         three best rotations' squared distances.
-    metric : {"auto", "eigenspace", "face"}
-        What ``w`` measures. ``"eigenspace"`` is the paper's ``eps_k``, the
-        distance inside face space: what the library's shapes cannot express
-        (a real rock's small irregularities) is left out. ``"face"`` adds the
-        distance from face space (Turk & Pentland's second measure),
-        ``sqrt(eps_k**2 + dffs**2)``: the distance between whole faces.
-        ``"auto"`` (default) is ``"eigenspace"`` when face space has at least
-        ``AUTO_MIN_COMPONENTS`` dimensions, else ``"face"``: in a thinner face
-        space a turned sample's projection sweeps across it and can land on any
-        shape (a two-shape library has one eigenface).
+    metric : {"auto", "sensor", "eigenspace", "face"}
+        What ranks the shapes. ``"sensor"`` is the distance of the sensor
+        model (:class:`rockscan.calibrate.SensorMetric`): log radii compared
+        harmonic by harmonic, each weighed by how much of it the outline noise
+        up to the library's tolerance leaves; it is also what decides.
+        ``"eigenspace"`` is the paper's ``eps_k``, the distance inside face
+        space: what the library's shapes cannot express is left out.
+        ``"face"`` adds the distance from face space (Turk & Pentland's second
+        measure), ``sqrt(eps_k**2 + dffs**2)``: the distance between whole
+        faces. ``"auto"`` (default) is ``"eigenspace"`` for a sample whose own
+        noise (estimated from it) is below ``AUTO_CLEAN_FRACTION`` of the
+        library's tolerance, in a face space of ``AUTO_MIN_COMPONENTS`` or more
+        dimensions, and ``"sensor"`` otherwise: what measured best
+        (docs/decision.md). ``Match.distances`` holds the
+        ranking metric's ``w``, except with ``"sensor"``, where it holds the
+        paper's outWeights ``eps_k`` so that MScore stays the paper's.
     angle_metric : {"face", "eigenspace"}
         What the nearest shape's angle minimises. A turned sample leaves face
         space, where ``eps`` alone can find spurious alignments; the whole-face
@@ -113,8 +121,8 @@ class MatchConfig:
     angle_metric: str = "face"
 
     def __post_init__(self) -> None:
-        if self.metric != "auto":
-            _check_metric(self.metric)
+        if self.metric not in RANK_METRICS:
+            raise ParameterError(f"metric must be one of {', '.join(RANK_METRICS)}; got {self.metric!r}")
         _check_metric(self.angle_metric)
         for name in ("distance_cutoff", "mscore_cutoff", "residual_cutoff"):
             value = getattr(self, name)
@@ -122,19 +130,9 @@ class MatchConfig:
                 raise ParameterError(f"{name} must be a number or None, got {value!r}")
 
     def resolved_metric(self, library: Library) -> str:
-        """The metric in force for a library (``"auto"`` resolved)."""
-        if self.metric != "auto":
-            return self.metric
-        return "eigenspace" if library.basis.n_components >= AUTO_MIN_COMPONENTS else "face"
-
-    def cutoffs(self, kind: str) -> tuple[float, float, float]:
-        """The (distance, MScore, residual) cutoffs in force for a face kind."""
-        theta, gamma, rho = DEFAULT_CUTOFFS[kind]
-        return (
-            theta if self.distance_cutoff is None else float(self.distance_cutoff),
-            gamma if self.mscore_cutoff is None else float(self.mscore_cutoff),
-            rho if self.residual_cutoff is None else float(self.residual_cutoff),
-        )
+        """The metric in force for a library before a sample is seen (``"auto"``: ``"sensor"``;
+        a clean sample may still be ranked by ``"eigenspace"``, see ``metric``)."""
+        return "sensor" if self.metric == "auto" else self.metric
 
 
 @dataclass(frozen=True)
@@ -155,7 +153,7 @@ class Match:
         Rotation of the sample from the nearest shape, counter-clockwise, in
         [0, 360/symmetry): the smallest of the equally good angles (0 for a circle).
     interesting : bool
-        Whether the sample passed both cutoffs.
+        Whether the sample passed the cutoffs (see the module docstring).
     residual : float
         Distance of the sample's face from face space at that rotation (DFFS).
     symmetry : int
@@ -164,9 +162,20 @@ class Match:
     names : tuple of str
         Library shape names, in library order.
     distances : (n_shapes,) ndarray of float
-        ``w_k`` for every library shape, each at its own best rotation.
+        ``w_k`` for every library shape, each at its own best rotation: the
+        paper's outWeights when the sensor distance ranks (see MatchConfig).
     angles_deg : (n_shapes,) ndarray of float
         Each shape's best rotation.
+    sensor_distance : float
+        Sensor-model distance to the nearest shape (what the calibrated cutoff tests).
+    cutoff_distance : float
+        The cutoff the distance test used: the nearest shape's calibrated
+        cutoff on ``sensor_distance``, or ``MatchConfig.distance_cutoff`` on ``w``.
+    decided_by : str
+        The test that decided (one of ``DECIDERS``): for a rejection the first
+        that failed, for an acceptance the distance test.
+    sensor_distances : (n_shapes,) ndarray of float
+        Sensor-model distance to every shape at its own best rotation.
     """
 
     nearest: str
@@ -180,6 +189,10 @@ class Match:
     names: tuple[str, ...] = field(repr=False)
     distances: NDArray[np.float64] = field(repr=False)
     angles_deg: NDArray[np.float64] = field(repr=False)
+    sensor_distance: float = math.nan
+    cutoff_distance: float = math.nan
+    decided_by: str = "calibrated-cutoff"
+    sensor_distances: NDArray[np.float64] | None = field(default=None, repr=False)
 
     def to_dict(self) -> dict[str, object]:
         """The interface's JSON keys (without path and centroid), plus extras."""
@@ -421,14 +434,25 @@ def match_radii(radii: ArrayLike, library: Library, config: MatchConfig | None =
     face_config = library.face_config
     radii = _check_sample(radii, face_config.n_angles)
     metric = config.resolved_metric(library)
-    metrics = tuple(dict.fromkeys((metric, config.angle_metric)))
+    # With the sensor distance ranking, w stays the paper's outWeights (for MScore).
+    w_metric = "eigenspace" if metric == "sensor" else metric
+    metrics = tuple(dict.fromkeys((w_metric, config.angle_metric)))
     # The sample term is computed once: for the scan and for the nearest shape's face.
     q = sample_term(radii, face_config) if face_config.grid == "polar" else None
     dist = _scan(radii, library, metrics, scan=config.scan, q=q)
-    chosen = dist[metric]
+    # The sensor distance with the sample's own noise taken out (rockscan.calibrate):
+    # the ranking is the same, and the cutoffs were calibrated on it.
+    sensor_sq = library.sensor_metric.squared_distances(radii)
+    sensor_sq = sensor_sq.min(axis=0) if config.scan else sensor_sq[0]
+    sensor = library.sensor_metric.corrected(radii, sensor_sq)
+    allowance = float(library.sensor_metric.allowance(radii))
+    chosen = dist[w_metric]
     best_shift = np.argmin(chosen, axis=0)
     w = chosen[best_shift, np.arange(chosen.shape[1])]
-    k = int(np.argmin(w))
+    if config.metric == "auto" and _clean_enough(radii, library):
+        metric = "eigenspace"
+    # Ranked before the noise is taken out: distances below the noise would tie at 0.
+    k = int(np.argmin(sensor_sq if metric == "sensor" else w))
     step_deg = 360.0 / face_config.n_angles
     angles = np.mod(best_shift * step_deg, 360.0) if config.scan else np.zeros(w.size)
     angle_deg = 0.0
@@ -453,11 +477,12 @@ def match_radii(radii: ArrayLike, library: Library, config: MatchConfig | None =
     # ~1e-8 where the truth is 0; the nearest shape's is recomputed directly
     # so that a library shape matched to itself scores exactly w = 0, MScore 1.
     w = w.copy()
-    w[k] = eps_best if metric == "eigenspace" else float(np.hypot(eps_best, residual))
+    w[k] = eps_best if w_metric == "eigenspace" else float(np.hypot(eps_best, residual))
     mean_w = float(w.mean())
-    mscore = 1.0 - float(w[k]) / mean_w if mean_w > 0 else 1.0
-    distance_cutoff, mscore_cutoff, residual_cutoff = config.cutoffs(face_config.kind)
-    interesting = bool(w[k] <= distance_cutoff and mscore > mscore_cutoff and residual <= residual_cutoff)
+    mscore = 1.0 - float(w.min()) / mean_w if mean_w > 0 else 1.0
+    interesting, cutoff, decided_by = _decide(
+        config, library, k, float(sensor[k]), allowance, float(w[k]), mscore, residual
+    )
     return Match(
         nearest=library.names[k],
         match=library.names[k] if interesting else None,
@@ -470,7 +495,58 @@ def match_radii(radii: ArrayLike, library: Library, config: MatchConfig | None =
         names=library.names,
         distances=w,
         angles_deg=angles,
+        sensor_distance=float(sensor[k]),
+        cutoff_distance=cutoff,
+        decided_by=decided_by,
+        sensor_distances=sensor,
     )
+
+
+def _clean_enough(radii: NDArray[np.float64], library: Library) -> bool:
+    """Whether "auto" ranks this sample by the paper's eigenspace distance.
+
+    A sample whose own noise (estimated from it, ``SensorMetric.noise_level``)
+    is below ``AUTO_CLEAN_FRACTION`` of the library's tolerance, in a face space
+    of at least ``AUTO_MIN_COMPONENTS`` dimensions: the eigenspace distance then
+    leaves out irregularities no library shape has (real coins stay circles).
+    Noisier samples are ranked by the sensor distance, which weighs what the
+    noise leaves of each harmonic.
+    """
+    if library.basis.n_components < AUTO_MIN_COMPONENTS:
+        return False
+    return bool(library.sensor_metric.noise_level(radii) < AUTO_CLEAN_FRACTION * library.tolerance)
+
+
+def _decide(
+    config: MatchConfig,
+    library: Library,
+    k: int,
+    sensor: float,
+    allowance: float,
+    w: float,
+    mscore: float,
+    residual: float,
+) -> tuple[bool, float, str]:
+    """(interesting, the distance test's cutoff, the deciding test) for nearest shape k.
+
+    The distance test: the sensor distance against shape k's calibrated
+    cutoff times the sample's allowance (its own noise), or, when
+    ``distance_cutoff`` is given, the ranked distance (the sensor distance, or
+    ``w`` for another ranking metric) against it. Then the MScore and residual
+    tests, only when their cutoffs are given.
+    """
+    if config.distance_cutoff is None:
+        cutoff, value, decider = float(library.cutoffs[k]) * allowance, sensor, "calibrated-cutoff"
+    else:
+        ranked = sensor if config.resolved_metric(library) == "sensor" else w
+        cutoff, value, decider = float(config.distance_cutoff), ranked, "distance-cutoff"
+    if not value <= cutoff:
+        return False, cutoff, decider
+    if config.mscore_cutoff is not None and not mscore > config.mscore_cutoff:
+        return False, cutoff, "mscore-cutoff"
+    if config.residual_cutoff is not None and not residual <= config.residual_cutoff:
+        return False, cutoff, "residual-cutoff"
+    return True, cutoff, decider
 
 
 def _face_at(

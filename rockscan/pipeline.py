@@ -327,6 +327,7 @@ def library_from_spec(
     face_config: FaceConfig | None = None,
     segment_config: SegmentConfig | None = None,
     n_components: int | None = None,
+    tolerance: float | None = None,
 ) -> Library:
     """Build a library from spec shapes, reading the example photos of shapes
     given by ``images`` instead of parameters.
@@ -340,6 +341,9 @@ def library_from_spec(
         How the example photos are segmented.
     n_components : int, optional
         Keep at most this many eigenfaces (default: all non-zero).
+    tolerance : float, optional
+        Outline noise the cutoffs are calibrated for (default 0.2); the
+        spread between a shape's example photos counts in its cutoff.
 
     Returns
     -------
@@ -364,7 +368,7 @@ def library_from_spec(
 
     config = face_config or FaceConfig()
     n = config.n_angles
-    names, radii, faces, params, interest = [], [], [], [], []
+    names, radii, faces, params, interest, sources = [], [], [], [], [], []
     for shape in shapes:
         if shape.params is not None:
             try:
@@ -388,6 +392,7 @@ def library_from_spec(
         faces.append(information_face(examples, config).mean(axis=0))
         params.append(shape.params)
         interest.append(shape.interest)
+        sources.append(examples if shape.params is None else None)
     return Library.from_radii(
         names,
         np.array(radii),
@@ -396,6 +401,8 @@ def library_from_spec(
         interest=interest,
         faces=np.array(faces),
         n_components=n_components,
+        examples=sources,
+        **({} if tolerance is None else {"tolerance": tolerance}),
     )
 
 

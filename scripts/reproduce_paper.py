@@ -1160,7 +1160,11 @@ def _near_sentence(rows: list[dict[str, object]], matcher: Matcher) -> str:
 
 
 def _distance_name(metric: str) -> str:
-    return {"eigenspace": "eigenspace distance (the paper's)", "face": "whole-face distance"}[metric]
+    return {
+        "eigenspace": "eigenspace distance (the paper's)",
+        "face": "whole-face distance",
+        "sensor": "sensor-model distance",
+    }[metric]
 
 
 def _near_order_sentence(default: dict[str, dict[str, object]], paper: dict[str, dict[str, object]]) -> str:

@@ -18,6 +18,9 @@ def test_default_library_has_the_papers_shapes_and_a_circle(default_lib):
     assert default_lib.symmetry[default_lib.index("circle")] == 0
     assert default_lib.basis.n_components == len(default_lib) - 1
     assert default_lib.interest[default_lib.index("five-armed-star")] == 2.0
+    # Its cutoffs come from the same calibration as any library's, at the paper's 20%.
+    assert default_lib.calibration is not None and default_lib.tolerance == 0.2
+    assert default_lib.cutoffs.shape == (len(default_lib),) and np.all(default_lib.cutoffs > 0)
 
 
 def test_shape_radii_are_centred_and_normalised():
@@ -65,7 +68,7 @@ def test_library_from_radii_and_given_faces():
 @pytest.mark.parametrize(
     ("names", "radii", "message"),
     [
-        (["a"], np.ones((1, 360)), "at least two shapes"),
+        ([], np.ones((0, 360)), "at least one shape"),
         (["a", "a"], np.ones((2, 360)) + np.arange(2)[:, None], "unique; repeated: a"),
         (["a", "B"], np.ones((2, 360)), "must match"),
         (["a", "b"], np.ones((3, 360)), "one row per name"),

@@ -133,6 +133,7 @@ def test_cutoffs_decide_interesting_but_not_nearest(paper_lib):
     radii = shape_radii(PAPER_NEAR["six-pointed-star"], 360)
     strict = match_radii(radii, paper_lib, MatchConfig(mscore_cutoff=0.99))
     assert strict.nearest == "six-pointed-star" and strict.match is None and not strict.interesting
+    assert strict.decided_by == "mscore-cutoff"
     tight = match_radii(radii, paper_lib, MatchConfig(distance_cutoff=1e-6, mscore_cutoff=0.0))
     assert not tight.interesting
     loose = match_radii(radii, paper_lib, MatchConfig(distance_cutoff=1.0, mscore_cutoff=0.5))
@@ -171,16 +172,20 @@ def test_reported_distance_is_the_ranked_distance(default_lib, default_specs):
     rng = np.random.default_rng(5)
     for spec in default_specs[:5]:
         noisy = turned_radii(spec.params, 70.0) * (1 + 0.05 * rng.normal(size=360))
-        m = match_radii(noisy, default_lib)
-        assert MatchConfig().resolved_metric(default_lib) == "eigenspace"
+        m = match_radii(noisy, default_lib, PAPER_EXACT)
         k = default_lib.index(m.nearest)
         assert m.distance == m.distances[k] == m.distances.min()
         assert m.mscore == pytest.approx(1 - m.distances[k] / m.distances.mean())
+        # The default ranks by the sensor distance and keeps the paper's outWeights for MScore.
+        d = match_radii(noisy, default_lib)
+        assert d.nearest == spec.name
+        assert d.mscore == pytest.approx(1 - d.distances.min() / d.distances.mean())
+        assert d.sensor_distance == d.sensor_distances[default_lib.index(d.nearest)]
 
 
-def test_a_two_shape_library_is_matched_by_whole_faces():
+def test_a_two_shape_library_is_matched_by_the_sensor_distance():
     # One eigenface: a turned sample's projection can reach either shape, so
-    # "auto" ranks by the whole-face distance.
+    # "auto" ranks by the sensor distance, which does not thin out with size.
     lib = Library.from_shapes(
         [
             ShapeSpec("disc", SuperformulaParams(0, 0, 1, 1, 1)),
@@ -188,7 +193,7 @@ def test_a_two_shape_library_is_matched_by_whole_faces():
         ]
     )
     assert lib.basis.n_components == 1
-    assert MatchConfig().resolved_metric(lib) == "face"
+    assert MatchConfig().resolved_metric(lib) == "sensor"
     rng = np.random.default_rng(8)
     for alpha in (0.0, 17.0, 45.0, 90.0):
         noisy = turned_radii(PAPER_SHAPES["three-faced-blunt"], alpha) * (1 + 0.01 * rng.normal(size=360))
@@ -202,7 +207,8 @@ def test_the_residual_cutoff_rejects_samples_far_from_face_space(default_lib, de
     noisy = radii * (1 + 0.08 * rng.normal(size=360))
     m = match_radii(noisy, default_lib)
     assert m.residual > 0
-    assert not match_radii(noisy, default_lib, MatchConfig(residual_cutoff=0.5 * m.residual)).interesting
+    cut = match_radii(noisy, default_lib, MatchConfig(residual_cutoff=0.5 * m.residual))
+    assert not cut.interesting and cut.decided_by == "residual-cutoff"
     kept = match_radii(
         noisy,
         default_lib,

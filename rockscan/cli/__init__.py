@@ -178,7 +178,16 @@ def _load_library(path: str | None) -> Any:
 
             return library_from_spec(shapes)
         return Library.from_shapes(shapes)
-    return load_library(path)
+    import warnings
+
+    from rockscan.io import RecalibratedWarning
+
+    with warnings.catch_warnings(record=True) as notes:
+        warnings.simplefilter("always", RecalibratedWarning)
+        library = load_library(path)
+    for note in notes:
+        click.echo(f"rockscan: note: {note.message}", err=True)
+    return library
 
 
 # ---------------------------------------------------------------- logging and progress

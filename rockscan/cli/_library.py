@@ -7,7 +7,7 @@ import os
 
 import click
 
-from rockscan._choices import FACE_KINDS, GRIDS
+from rockscan._choices import DEFAULT_TOLERANCE, FACE_KINDS, GRIDS
 from rockscan.cli import DEFAULT_LIBRARY_NAME, _errors, _load_library, log, main
 
 # ---------------------------------------------------------------- library
@@ -59,6 +59,14 @@ def library() -> None:
 @click.option(
     "--components", type=int, default=None, help="Keep at most this many eigenfaces (default: all non-zero)."
 )
+@click.option(
+    "--tolerance",
+    type=float,
+    default=DEFAULT_TOLERANCE,
+    show_default=True,
+    help="Outline noise (standard deviation, 0.2 = 20%) a sample may carry and still belong to its shape; "
+    "the per-shape cutoffs are calibrated for it.",
+)
 @_errors
 def library_build(
     spec: str,
@@ -70,8 +78,9 @@ def library_build(
     resolution: float,
     grid: str,
     components: int | None,
+    tolerance: float,
 ) -> None:
-    """Build a library file from a spec (TOML with [[shape]] tables)."""
+    """Build a library file from a spec (TOML with [[shape]] tables), with cutoffs calibrated for it."""
     from rockscan.errors import SpecError
     from rockscan.information import FaceConfig
     from rockscan.io import read_spec, save_library
@@ -89,11 +98,15 @@ def library_build(
     config = FaceConfig(
         kind=face_kind, sigma=sigma, n_angles=n_angles, resolution=resolution, grid=grid, reference=ref_params
     )
-    lib = library_from_spec(shapes, face_config=config, n_components=components)
+    if not 0 <= tolerance <= 1:
+        raise SpecError(f"--tolerance must be from 0 to 1 (0.2 is 20%), got {tolerance}")
+    lib = library_from_spec(shapes, face_config=config, n_components=components, tolerance=tolerance)
     save_library(lib, output)
+    cutoffs = lib.cutoffs
     click.echo(
         f"wrote {output}: {len(lib)} shapes, {lib.basis.n_components} eigenfaces, "
-        f"face {face_kind} {'x'.join(map(str, config.face_shape))}"
+        f"face {face_kind} {'x'.join(map(str, config.face_shape))}; cutoffs calibrated for "
+        f"{100 * lib.tolerance:g}% outline noise ({cutoffs.min():.3g} to {cutoffs.max():.3g})"
     )
 
 
@@ -113,10 +126,16 @@ def library_build(
 def library_show(lib: str, plot_path: str | None, as_json: bool) -> None:
     """List a library's shapes: LIB is a .npz library, a .toml spec, or 'default'
     (the built-in library, also when LIB is left out)."""
+    import numpy as np
+
     library_obj = _load_library(lib)
     if plot_path == "":
         plot_path = os.path.splitext(os.path.basename(lib))[0] + ".png"
     face = library_obj.face_config
+    cutoffs = library_obj.cutoffs
+    calibration = library_obj.calibration
+    spacing = calibration.spacing if calibration is not None else np.full(len(library_obj), np.inf)
+    crowded = calibration.crowded if calibration is not None else np.zeros(len(library_obj), bool)
     if as_json:
         for i, name in enumerate(library_obj.names):
             params = library_obj.params[i]
@@ -127,6 +146,10 @@ def library_show(lib: str, plot_path: str | None, as_json: bool) -> None:
                         "symmetry": int(library_obj.symmetry[i]),
                         "interest": float(library_obj.interest[i]),
                         "params": params.as_dict() if params is not None else None,
+                        "cutoff": float(cutoffs[i]),
+                        "spacing": float(spacing[i]) if np.isfinite(spacing[i]) else None,
+                        "crowded": bool(crowded[i]),
+                        "tolerance": library_obj.tolerance,
                     }
                 )
             )
@@ -135,15 +158,21 @@ def library_show(lib: str, plot_path: str | None, as_json: bool) -> None:
         click.echo(
             f"{label}: {len(library_obj)} shapes, {library_obj.basis.n_components} eigenfaces; "
             f"face {face.kind} on a {face.grid} grid {'x'.join(map(str, face.face_shape))}, "
-            f"sigma {face.sigma:g}"
+            f"sigma {face.sigma:g}; cutoffs for {100 * library_obj.tolerance:g}% outline noise"
         )
-        click.echo(f"{'name':<22} {'symmetry':>8} {'interest':>8}  parameters (m1 m2 n1 n2 n3 a b)")
+        click.echo(
+            f"{'name':<22} {'symmetry':>8} {'interest':>8} {'cutoff':>7} {'spacing':>7}  "
+            "parameters (m1 m2 n1 n2 n3 a b)"
+        )
         for i, name in enumerate(library_obj.names):
             params = library_obj.params[i]
             text = " ".join(f"{v:g}" for v in params.as_dict().values()) if params else "(from examples)"
             order = int(library_obj.symmetry[i])
+            gap = f"{spacing[i]:7.3g}" if np.isfinite(spacing[i]) else f"{'-':>7}"
+            mark = " (crowded)" if crowded[i] else ""
             click.echo(
-                f"{name:<22} {'circle' if order == 0 else order:>8} {library_obj.interest[i]:>8g}  {text}"
+                f"{name:<22} {'circle' if order == 0 else order:>8} {library_obj.interest[i]:>8g} "
+                f"{cutoffs[i]:7.3g} {gap}  {text}{mark}"
             )
     if plot_path:
         from rockscan.plot import plot_library

@@ -1,0 +1,232 @@
+"""Calibration: the sensor model, the sensor distance, per-shape cutoffs, old library files."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+from click.testing import CliRunner
+from conftest import PAPER_SHAPES
+from hypothesis import given
+from hypothesis import strategies as st
+
+from rockscan.calibrate import (
+    Calibration,
+    SensorMetric,
+    calibrate,
+    log_noise_variance,
+    simulate_radii,
+)
+from rockscan.cli import main
+from rockscan.errors import LibraryError, ParameterError
+from rockscan.io import RecalibratedWarning, load_library, save_library
+from rockscan.library import Library, ShapeSpec, shape_radii
+from rockscan.match import MatchConfig, match_radii
+from rockscan.superformula import SuperformulaParams
+
+STAR = shape_radii(SuperformulaParams(5, 5, 2, 7, 7), 360)
+BLUNT = shape_radii(PAPER_SHAPES["three-faced-blunt"], 360)
+EGG = shape_radii(SuperformulaParams(1, 1, 0.75, 0.75, 0.75), 360)
+
+
+@pytest.fixture(scope="module")
+def small_lib() -> Library:
+    return Library.from_radii(["star", "blunt", "egg"], np.array([STAR, BLUNT, EGG]))
+
+
+def test_log_noise_variance_is_the_noise_squared_when_small():
+    assert log_noise_variance(0.0) == 0.0
+    # log(1 + e) ~ e - e**2/2: variance sigma**2 (1 + sigma**2/2) to second order.
+    assert log_noise_variance(0.01) == pytest.approx(1e-4, rel=1e-3)
+    assert log_noise_variance(0.05) == pytest.approx(0.05**2, rel=0.02)
+
+
+def test_a_noise_free_circle_is_measured_as_a_circle():
+    measured = simulate_radii(np.ones(360), np.zeros(8), rng=1)
+    # The polygon's chords sag by 1 - cos(pi/360) between vertices; blur and
+    # a 0.3 px jitter at radii of 40-200 px add at most a few thousandths.
+    np.testing.assert_allclose(measured / measured.mean(axis=1, keepdims=True), 1.0, atol=0.03)
+
+
+def test_simulated_noise_has_the_asked_spread():
+    measured = simulate_radii(STAR, np.full(64, 0.1), rng=2)
+    spread = np.std(np.log(measured / STAR), axis=1)
+    # Each vertex carries 10%; rays between vertices and the blur average a little of it away.
+    assert 0.06 < np.median(spread) < 0.11
+
+
+@given(shift=st.integers(0, 359), scale=st.floats(1e-3, 1e3))
+def test_the_sensor_distance_finds_a_shape_at_any_rotation_and_scale(small_lib, shift, scale):
+    metric = small_lib.sensor_metric
+    dist, found = metric.distances(np.roll(STAR, shift) * scale)
+    assert dist[0] == pytest.approx(0.0, abs=1e-6)
+    assert dist[1] > 1.0 and dist[2] > 1.0
+    assert (found[0] - shift) % 72 == 0  # the star's five-fold symmetry
+
+
+def test_with_every_weight_one_the_sensor_distance_is_the_log_radii_matched_filter():
+    metric = SensorMetric.from_radii(np.array([STAR, EGG]))
+    flat = SensorMetric(
+        weights=np.ones_like(metric.weights),
+        spectra=np.fft.rfft(np.log(np.array([STAR, EGG]) / 1.0), axis=1, norm="ortho"),
+        norm_sq=np.array([np.sum(np.log(STAR) ** 2), np.sum(np.log(EGG) ** 2)]),
+        tolerance=0.2,
+    )
+    sample = np.roll(BLUNT, 17)
+    x = np.log(sample / sample.mean())
+    direct = np.array([[np.sum((np.roll(x, -a) - np.log(r)) ** 2) for r in (STAR, EGG)] for a in range(360)])
+    np.testing.assert_allclose(flat.squared_distances(sample), direct, rtol=1e-9, atol=1e-9)
+
+
+def test_calibration_is_reproducible_and_per_shape(small_lib):
+    again = calibrate(small_lib.radii)
+    np.testing.assert_array_equal(again.cutoffs, small_lib.cutoffs)
+    assert small_lib.calibration.tolerance == 0.2
+    assert np.all(small_lib.cutoffs > 0) and np.unique(small_lib.cutoffs).size == 3
+    assert np.all(np.isfinite(small_lib.calibration.spacing))
+
+
+def test_samples_within_the_tolerance_are_accepted_and_far_shapes_rejected(small_lib):
+    rng = np.random.default_rng(4)
+    for k, radii in enumerate(small_lib.radii):
+        for noise in (0.0, 0.1, 0.2):
+            measured = simulate_radii(radii, np.full(6, noise), rng=rng)
+            matches = [match_radii(np.roll(r, 31 * k), small_lib) for r in measured]
+            assert all(m.nearest == small_lib.names[k] for m in matches)
+            assert sum(m.interesting for m in matches) >= 5, (k, noise)
+    far = shape_radii(SuperformulaParams(8, 8, 0.6, 3, 3), 360)
+    m = match_radii(far, small_lib)
+    assert not m.interesting and m.decided_by == "calibrated-cutoff"
+    assert m.sensor_distance > m.cutoff_distance
+
+
+def test_a_larger_tolerance_allows_more():
+    lib = Library.from_radii(["star", "blunt", "egg"], np.array([STAR, BLUNT, EGG]), tolerance=0.1)
+    wide = Library.from_radii(["star", "blunt", "egg"], np.array([STAR, BLUNT, EGG]), tolerance=0.3)
+    assert lib.tolerance == 0.1 and wide.tolerance == 0.3
+    sample = simulate_radii(STAR, 0.15, rng=5)[0]
+    assert match_radii(sample, wide).cutoff_distance > match_radii(sample, lib).cutoff_distance
+
+
+def test_the_spread_between_example_photos_counts():
+    # Two examples of one rock that differ by a smooth 4% deformation.
+    theta = 2 * np.pi * np.arange(360) / 360
+    examples = np.array(
+        [BLUNT * (1 + 0.04 * np.cos(3 * theta + 1)), BLUNT * (1 - 0.04 * np.cos(3 * theta + 1))]
+    )
+    radii = np.array([STAR, examples.mean(axis=0), EGG])
+    plain = calibrate(radii)
+    spread = calibrate(radii, examples=[None, examples, None])
+    assert spread.cutoffs[1] > plain.cutoffs[1]
+    with pytest.raises(ParameterError, match="one entry"):
+        calibrate(radii, examples=[None])
+
+
+def test_a_one_shape_library_decides_by_its_cutoff():
+    lib = Library.from_shapes([ShapeSpec("blunt", PAPER_SHAPES["three-faced-blunt"])])
+    assert len(lib) == 1 and lib.basis.n_components == 0
+    assert not np.isfinite(lib.calibration.spacing[0])
+    same = match_radii(simulate_radii(lib.radii[0], 0.1, rng=7)[0], lib)
+    assert same.nearest == "blunt" and same.interesting
+    other = match_radii(STAR, lib)
+    assert other.nearest == "blunt" and not other.interesting
+    # MScore degenerates with one shape (w is its own mean): reported, not deciding.
+    assert same.mscore == other.mscore == 1.0
+
+
+def test_a_two_shape_library_flags_what_belongs():
+    lib = Library.from_radii(["star", "egg"], np.array([STAR, EGG]))
+    rng = np.random.default_rng(8)
+    flagged = [match_radii(r, lib).interesting for r in simulate_radii(STAR, np.full(10, 0.15), rng=rng)]
+    assert sum(flagged) >= 9
+    long = shape_radii(SuperformulaParams(4, 4, 2, 2, 2, b=0.35), 360)
+    assert not match_radii(long, lib).interesting
+
+
+def test_bad_calibration_settings_are_refused():
+    with pytest.raises(ParameterError, match="tolerance must be a number from 0 to 1"):
+        calibrate(np.array([STAR]), tolerance=2.0)
+    with pytest.raises(ParameterError, match="positive"):
+        calibrate(np.array([-STAR]))
+    with pytest.raises(ParameterError, match="all of one length"):
+        Calibration(cutoffs=np.ones(2), spacing=np.ones(3), crowded=np.zeros(2), calibrated=np.ones(2))
+
+
+def _old_format_file(path, lib: Library) -> None:
+    """A library file as rockscan wrote it before cutoffs were stored (format version 1)."""
+    meta = {
+        "format": "rockscan-library",
+        "version": 1,
+        "rockscan": "0.1.0",
+        "names": list(lib.names),
+        "params": [p.as_dict() if p is not None else None for p in lib.params],
+        "face": lib.face_config.to_dict(),
+    }
+    np.savez(
+        path,
+        metadata=np.frombuffer(json.dumps(meta).encode(), dtype=np.uint8),
+        radii=lib.radii,
+        interest=lib.interest,
+        symmetry=lib.symmetry,
+        mean=lib.basis.mean,
+        components=lib.basis.components,
+        eigenvalues=lib.basis.eigenvalues,
+        weights=lib.basis.weights,
+    )
+
+
+def test_a_library_file_from_before_cutoffs_loads_recalibrated(tmp_path, small_lib):
+    path = tmp_path / "old.npz"
+    _old_format_file(path, small_lib)
+    with pytest.warns(RecalibratedWarning, match="calibrated them now"):
+        old = load_library(path)
+    np.testing.assert_array_equal(old.cutoffs, small_lib.cutoffs)
+    assert old.calibration.note == "calibrated when loaded"
+    result = CliRunner().invoke(main, ["library", "show", str(path)])
+    assert result.exit_code == 0
+    assert "rockscan: note:" in result.stderr and "cutoff" in result.stdout
+
+
+def test_cutoffs_round_trip_through_a_library_file(tmp_path):
+    lib = Library.from_radii(["star", "egg"], np.array([STAR, EGG]), tolerance=0.12)
+    save_library(lib, tmp_path / "lib.npz")
+    back = load_library(tmp_path / "lib.npz")
+    np.testing.assert_array_equal(back.cutoffs, lib.cutoffs)
+    np.testing.assert_array_equal(back.calibration.spacing, lib.calibration.spacing)
+    assert back.tolerance == 0.12
+
+
+def test_incomplete_stored_cutoffs_are_refused(tmp_path):
+    lib = Library.from_radii(["star", "egg"], np.array([STAR, EGG]))
+    save_library(lib, tmp_path / "lib.npz")
+    with np.load(tmp_path / "lib.npz") as archive:
+        arrays = {k: archive[k] for k in archive.files if k != "cutoff_spacing"}
+    np.savez(tmp_path / "cut.npz", **arrays)
+    with pytest.raises(LibraryError, match="cutoffs are incomplete"):
+        load_library(tmp_path / "cut.npz")
+
+
+def test_library_build_takes_a_tolerance_and_show_prints_the_cutoffs(tmp_path):
+    spec = tmp_path / "spec.toml"
+    spec.write_text(
+        '[[shape]]\nname = "star"\nm1 = 5\nm2 = 5\nn1 = 2\nn2 = 7\nn3 = 7\n'
+        '[[shape]]\nname = "egg"\nm1 = 1\nm2 = 1\nn1 = 0.75\nn2 = 0.75\nn3 = 0.75\n'
+    )
+    out = tmp_path / "lib.npz"
+    runner = CliRunner()
+    built = runner.invoke(main, ["library", "build", str(spec), "-o", str(out), "--tolerance", "0.1"])
+    assert built.exit_code == 0, built.output
+    assert "calibrated for 10% outline noise" in built.output
+    shown = runner.invoke(main, ["library", "show", str(out), "--json"])
+    rows = [json.loads(line) for line in shown.stdout.splitlines()]
+    assert [r["tolerance"] for r in rows] == [0.1, 0.1]
+    np.testing.assert_allclose([r["cutoff"] for r in rows], load_library(out).cutoffs)
+    bad = runner.invoke(main, ["library", "build", str(spec), "-o", str(out), "--tolerance", "5"])
+    assert bad.exit_code == 1 and "--tolerance must be from 0 to 1" in bad.output
+
+
+def test_an_explicit_distance_cutoff_replaces_the_calibrated_one(small_lib):
+    m = match_radii(STAR, small_lib, MatchConfig(distance_cutoff=-1.0))
+    assert not m.interesting and m.decided_by == "distance-cutoff" and m.cutoff_distance == -1.0
+    assert match_radii(STAR, small_lib).decided_by == "calibrated-cutoff"
