@@ -300,8 +300,11 @@ class SensorMetric:
         spectra = raw * np.sqrt(weights)
         n_freq = weights.size
         above = np.flatnonzero((weights < 0.1) & (np.arange(n_freq) > COARSE_HARMONICS))
-        lo = int(above[0]) if above.size else n_freq - 2 * _BAND
-        band = (min(lo, n_freq - _BAND - 1), min(lo, n_freq - _BAND - 1) + _BAND)
+        # A coarse face (few rays) has few harmonics: the band shrinks to fit, never empty.
+        width = max(1, min(_BAND, (n_freq - 1) // 3))
+        lo = int(above[0]) if above.size else n_freq - 2 * width
+        start = int(np.clip(lo, 1, n_freq - width))
+        band = (start, start + width)
         metric = cls(
             weights=weights,
             spectra=spectra,

@@ -96,17 +96,18 @@ def match_cutoffs(match: Match, library: Library, config: MatchConfig | None = N
     """
     from rockscan.match import MatchConfig
 
-    theta, gamma, rho = (config or MatchConfig()).cutoffs(library.face_config.kind)
-    cutoffs = {"distance": theta, "MScore": gamma, "DFFS": rho}
-    for name, attribute in (
-        ("distance", "cutoff_distance"),
-        ("MScore", "cutoff_mscore"),
-        ("DFFS", "cutoff_residual"),
-        ("segmentation", "cutoff_segmentation"),
-    ):
-        value = getattr(match, attribute, None)
-        if value is not None:
-            cutoffs[name] = float(value)
+    config = config or MatchConfig()
+    # The distance test is on the sensor distance against the nearest shape's
+    # calibrated cutoff (rockscan.calibrate); MScore and DFFS decide only when
+    # the user sets a cutoff for them.
+    cutoffs = {"distance": float(match.cutoff_distance)}
+    if config.mscore_cutoff is not None:
+        cutoffs["MScore"] = float(config.mscore_cutoff)
+    if config.residual_cutoff is not None:
+        cutoffs["DFFS"] = float(config.residual_cutoff)
+    segmentation = getattr(match, "cutoff_segmentation", None)
+    if segmentation is not None:
+        cutoffs["segmentation"] = float(segmentation)
     return cutoffs
 
 
@@ -133,12 +134,12 @@ def decision_tests(
     """
     m = rock.match
     cutoffs = match_cutoffs(m, library, config)
-    w = float(m.distances[m.names.index(m.nearest)])
-    tests = [
-        DecisionTest("distance", w, cutoffs["distance"], w <= cutoffs["distance"], "<="),
-        DecisionTest("MScore", m.mscore, cutoffs["MScore"], m.mscore > cutoffs["MScore"], ">"),
-        DecisionTest("DFFS", m.residual, cutoffs["DFFS"], m.residual <= cutoffs["DFFS"], "<="),
-    ]
+    w = float(m.sensor_distance)
+    tests = [DecisionTest("distance", w, cutoffs["distance"], w <= cutoffs["distance"], "<=")]
+    if "MScore" in cutoffs:
+        tests.append(DecisionTest("MScore", m.mscore, cutoffs["MScore"], m.mscore > cutoffs["MScore"], ">"))
+    if "DFFS" in cutoffs:
+        tests.append(DecisionTest("DFFS", m.residual, cutoffs["DFFS"], m.residual <= cutoffs["DFFS"], "<="))
     score = rock.to_dict().get("segmentation_score")
     if "segmentation" in cutoffs and score is not None:
         cut = cutoffs["segmentation"]
@@ -456,9 +457,13 @@ def _draw_faces(fig: Any, ax_face: Any, ax_lib: Any, ax_bar: Any, rock: RockResu
 
 def _draw_distances(ax: Any, rock: RockResult, test: DecisionTest) -> None:
     m = rock.match
-    order = np.argsort(m.distances)[::-1]
+    # The distance test is on the sensor distance (rockscan.calibrate): draw that one,
+    # so the bars and the cutoff are in the same units.
+    sensor = m.sensor_distances is not None
+    distances = np.asarray(m.sensor_distances if sensor else m.distances, dtype=float)
+    order = np.argsort(distances)[::-1]
     names = [m.names[i] for i in order]
-    values = m.distances[order]
+    values = distances[order]
     colors = [(_SHAPE if test.passed else _FAIL) if name == m.nearest else "#8e8e93" for name in names]
     bars = ax.barh(np.arange(len(names)), values, color=colors)
     best = names.index(m.nearest)
@@ -467,10 +472,12 @@ def _draw_distances(ax: Any, rock: RockResult, test: DecisionTest) -> None:
     ax.axvline(
         test.cutoff, color=_CUTOFF, lw=1.4, ls="--", label=f"cutoff {test.cutoff:.3g}:\nmatch at or below"
     )
-    ax.axvline(float(np.mean(m.distances)), color="#1c1c1e", lw=0.8, ls=":", label="mean\n(MScore's base)")
+    if not sensor:
+        ax.axvline(float(np.mean(values)), color="#1c1c1e", lw=0.8, ls=":", label="mean\n(MScore's base)")
     # Room on the right for the legend, clear of the bars.
     ax.set_xlim(0.0, 1.4 * max(float(values.max()), test.cutoff))
-    ax.set_xlabel("distance at best rotation (outWeight)", fontsize=8)
+    what = "sensor distance" if sensor else "distance (outWeight)"
+    ax.set_xlabel(f"{what} at best rotation", fontsize=8)
     ax.tick_params(axis="x", labelsize=7)
     ax.legend(fontsize=7, loc="center right", framealpha=0.9)
     ax.set_title("distance to every library shape", fontsize=9)

@@ -604,10 +604,10 @@ def _jsonable(value: Any) -> Any:
 def library_hash(library: Library) -> str:
     """A content hash of a library: its shapes, not the file they came in.
 
-    SHA-256 of the names, interests, symmetries, face settings and basis size
-    (canonical JSON), and the radii as little-endian float64 rounded to 10
-    decimals. The basis itself (a BLAS result) is left out, so the hash is the
-    same in every process and at every thread count; the same spec built
+    SHA-256 of the names, interests, symmetries, face settings, basis size and
+    calibration tolerance (canonical JSON), and the radii and calibrated cutoffs
+    as little-endian float64 rounded to 10 decimals. The basis itself (a BLAS
+    result) is left out, so the hash is the same in every process and at every thread count; the same spec built
     twice, or saved and loaded, hashes the same.
 
     Parameters
@@ -625,9 +625,11 @@ def library_hash(library: Library) -> str:
         "symmetry": [int(v) for v in library.symmetry],
         "face_config": _jsonable(library.face_config),
         "n_components": int(library.basis.n_components),
+        "tolerance": float(library.tolerance),
     }
     digest = hashlib.sha256(json.dumps(meta, sort_keys=True, separators=(",", ":")).encode("utf-8"))
     digest.update(np.round(np.asarray(library.radii, dtype="<f8"), 10).tobytes())
+    digest.update(np.round(np.asarray(library.cutoffs, dtype="<f8"), 10).tobytes())
     return digest.hexdigest()
 
 
@@ -656,7 +658,6 @@ def report_provenance(
     from rockscan import __version__
 
     match = config.classify.match
-    theta, gamma, rho = match.cutoffs(library.face_config.kind)
     classify = _jsonable(config.classify)
     classify.pop("match", None)
     segmentation = classify.pop("segment", None)
@@ -677,7 +678,14 @@ def report_provenance(
             "scan": match.scan,
             "refine": match.refine,
         },
-        "cutoffs": {"distance": theta, "mscore": gamma, "residual": rho},
+        "cutoffs": {
+            # The per-shape cutoffs belong to the library (and to its hash); these
+            # are the ones the user set on top of them (None: not in force).
+            "tolerance": float(library.tolerance),
+            "distance": match.distance_cutoff,
+            "mscore": match.mscore_cutoff,
+            "residual": match.residual_cutoff,
+        },
         "options": options,
         "segmentation": segmentation,
     }

@@ -10,7 +10,7 @@ from PIL import Image
 from rockscan.errors import ParameterError
 from rockscan.information import FaceConfig
 from rockscan.io import default_library
-from rockscan.match import DEFAULT_CUTOFFS, MatchConfig, match_radii
+from rockscan.match import MatchConfig, match_radii
 from rockscan.pipeline import RockResult, classify_image
 from rockscan.plot import (
     classification_figure,
@@ -154,7 +154,7 @@ def test_the_figure_says_interesting_and_draws_the_cutoff_on_the_bars(classified
     fig = classification_figure(photo.pixels, rocks, library)
     headline, why = _texts(fig)
     assert headline == "INTERESTING: shard" and why.startswith("passes every test: distance ")
-    theta = DEFAULT_CUTOFFS["information"][0]
+    theta = rocks[0].match.cutoff_distance
     ax_dist = fig.axes[5]
     cutoffs = [line for line in ax_dist.get_lines() if line.get_label().startswith("cutoff")]
     assert len(cutoffs) == 1 and list(cutoffs[0].get_xdata()) == [theta, theta]
@@ -193,10 +193,11 @@ def test_decision_tests_agree_with_the_matchers_verdict(classified, default_spec
         photo = render_photo(spec.params, RenderConfig(rows=160, cols=200, outline_noise=0.08), rng=3)
         rock = classify_image(photo.pixels, library)[0]
         tests = decision_tests(rock, library)
-        assert [t.name for t in tests] == ["distance", "MScore", "DFFS"]
+        # With the calibrated cutoffs only the distance test is in force by default.
+        assert [t.name for t in tests] == ["distance"]
         assert all(t.passed for t in tests) == rock.match.interesting, spec.name
-        # The default library ranks by the eigenspace distance: w is the reported distance.
-        assert tests[0].value == pytest.approx(rock.match.distance)
+        assert tests[0].value == pytest.approx(rock.match.sensor_distance)
+        assert tests[0].cutoff == pytest.approx(rock.match.cutoff_distance)
 
 
 def test_cutoffs_carried_by_the_match_win():
@@ -205,7 +206,7 @@ def test_cutoffs_carried_by_the_match_win():
         cutoff_segmentation = 0.3
 
     library = default_library()
-    cutoffs = match_cutoffs(Carrying(), library, MatchConfig(mscore_cutoff=0.7))
-    _, gamma, rho = DEFAULT_CUTOFFS["information"]
-    assert cutoffs == {"distance": 0.5, "MScore": 0.7, "DFFS": rho, "segmentation": 0.3}
-    assert match_cutoffs(Carrying(), library)["MScore"] == gamma
+    cutoffs = match_cutoffs(Carrying(), library, MatchConfig(mscore_cutoff=0.7, residual_cutoff=0.4))
+    assert cutoffs == {"distance": 0.5, "MScore": 0.7, "DFFS": 0.4, "segmentation": 0.3}
+    # MScore and DFFS decide only when a cutoff is set for them.
+    assert match_cutoffs(Carrying(), library) == {"distance": 0.5, "segmentation": 0.3}

@@ -146,9 +146,13 @@ def test_a_classify_run_on_broken_files_writes_only_its_error_lines(tmp_path):
     out = subprocess.run(
         [sys.executable, "-c", code, "classify", "--json", *broken], capture_output=True, text=True
     )
-    assert out.stderr == ""
     records = [json.loads(line) for line in out.stdout.splitlines()]
     assert [r["path"] for r in records] == broken
+    # Each error row is also one line on stderr, and nothing else is (no decoder noise).
+    lines = out.stderr.splitlines()
+    assert len(lines) == len(records)
+    for line, r in zip(lines, records, strict=True):
+        assert line.startswith(f"rockscan: error: {r['path']}: ") and line.endswith(r["error"])
     assert all("truncated or corrupt" in r["error"] for r in records[1:])
 
 
