@@ -607,8 +607,8 @@ def library_hash(library: Library) -> str:
     SHA-256 of the names, interests, symmetries, face settings, basis size and
     calibration tolerance (canonical JSON), and the radii and calibrated cutoffs
     as little-endian float64 rounded to 10 decimals. The basis itself (a BLAS
-    result) is left out, so the hash is the same in every process and at every thread count; the same spec built
-    twice, or saved and loaded, hashes the same.
+    result) is left out, so the hash is the same in every process and at every
+    thread count; the same spec built twice, or saved and loaded, hashes the same.
 
     Parameters
     ----------
