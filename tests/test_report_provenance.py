@@ -52,8 +52,9 @@ def test_every_format_records_version_library_hash_method_cutoffs_and_options(
     expected = json.loads(json.dumps(report_provenance(default_lib, config)))
     assert read_provenance(report) == expected
     assert expected["library"]["sha256"] == library_hash(default_lib)
-    assert expected["cutoffs"] == {"distance": 0.192, "mscore": 0.4, "residual": 0.41}
-    assert expected["method"]["metric"] == "eigenspace" and expected["options"]["all_rocks"] is False
+    # The per-shape cutoffs are the library's (in its hash); the user's own are recorded too.
+    assert expected["cutoffs"] == {"tolerance": 0.2, "distance": None, "mscore": 0.4, "residual": None}
+    assert expected["method"]["metric"] == "sensor" and expected["options"]["all_rocks"] is False
     assert expected["rockscan"] == __import__("rockscan").__version__
     if suffix == ".html":
         page = report.read_text()
@@ -89,7 +90,7 @@ def test_the_library_hash_is_its_content_in_every_process(tmp_path, default_lib)
 @pytest.mark.parametrize(
     ("suffix", "change", "named"),
     [
-        (".csv", ["--mscore-cutoff", "0.9"], "cutoffs.mscore 0.283 (report) vs 0.9 (now)"),
+        (".csv", ["--mscore-cutoff", "0.9"], "cutoffs.mscore null (report) vs 0.9 (now)"),
         (".html", ["--method", "paper"], "method.angle_metric"),
         (".jsonl", ["--all"], "options.all_rocks false (report) vs true (now)"),
         (".geojson", ["-l", "LIB"], "library.sha256"),
