@@ -57,7 +57,7 @@ def _set(lib: Any, count: int) -> None:
 
 
 def _limit(libraries: list[Any]) -> list[tuple[Any, int]]:
-    saved = [(lib, lib.num_threads) for lib in libraries]
+    saved = [(lib, lib.get_num_threads() or 1) for lib in libraries]
     for lib, count in saved:
         if count != 1:
             _set(lib, 1)
@@ -110,7 +110,10 @@ def one_blas_thread(func: F) -> F:
 
 
 def blas_threads() -> int:
-    """The smallest thread count among the BLAS libraries now (1 inside a decorated call)."""
+    """The largest thread count among the BLAS libraries now (1 inside a decorated call).
+
+    The largest, because a library built for one thread reports 1 whatever it is told.
+    """
     shared, per_thread = _blas()
-    counts = [lib.num_threads for lib in (*shared, *per_thread)]
-    return min(counts) if counts else 1
+    counts = [lib.get_num_threads() or 1 for lib in (*shared, *per_thread)]
+    return max(counts) if counts else 1
