@@ -219,6 +219,8 @@ class Prefilter:
         lb : (n_shapes,) ndarray of float
         """
         sample = features_of(omega, self.n_lead, self.group)
+        if sample.shape[1] < self.features.shape[1]:  # groups of eigenfaces not yet in use
+            sample = np.pad(sample, ((0, 0), (0, self.features.shape[1] - sample.shape[1])))
         sample_sq = np.einsum("ad,ad->a", sample, sample)
         if extra_sq is not None:
             sample_sq = sample_sq + extra_sq.astype(np.float32)
