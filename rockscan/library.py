@@ -204,6 +204,7 @@ class Library:
         interest: ArrayLike | None = None,
         faces: ArrayLike | None = None,
         n_components: int | None = None,
+        exact_limit: int = EXACT_LIMIT,
     ) -> Library:
         """Build a library from radii (one row per shape, at the matcher's angles).
 
@@ -224,6 +225,8 @@ class Library:
             library of at most ``EXACT_LIMIT`` shapes, else
             :data:`rockscan.eigen.STREAM_COMPONENTS` (a truncated basis fitted
             on a random sample and streamed; see the module docstring).
+        exact_limit : int, optional
+            Largest library given the exact basis (default ``EXACT_LIMIT``).
         """
         config = face_config or FaceConfig()
         names = tuple(names)
@@ -244,7 +247,7 @@ class Library:
         if face_array is not None and face_array.shape != (len(names), *config.face_shape):
             raise LibraryError(f"faces must be (n_shapes, {', '.join(map(str, config.face_shape))})")
         try:
-            if len(names) <= EXACT_LIMIT:
+            if len(names) <= exact_limit:
                 face_array = information_face(radii, config) if face_array is None else face_array
                 basis = EigenBasis.from_faces(face_array, n_components=n_components)
             else:

@@ -47,8 +47,8 @@ from numpy.typing import ArrayLike, NDArray
 from rockscan._choices import NOVELTY_METRICS
 from rockscan.eigen import EigenBasis
 from rockscan.errors import LibraryError, ParameterError
-from rockscan.information import information_face
-from rockscan.library import Library
+from rockscan.information import information_face, sample_term
+from rockscan.library import EXACT_LIMIT, Library
 from rockscan.match import MatchConfig, _template_spectra, match_radii, rotation_scores
 from rockscan.polar import symmetry_order
 from rockscan.prefilter import EXACT_SCAN_LIMIT, Prefilter, features_of
@@ -213,6 +213,9 @@ class ObservedShapes:
         threshold = (
             default_threshold(library, metric=config.metric) if config.threshold is None else config.threshold
         )
+        if len(library) > EXACT_LIMIT:
+            # A large library's faces are not kept; its shapes and basis seed it as they are.
+            return cls(library=library, threshold=float(threshold), metric=config.metric, n_seed=len(library))
         seed = Library.from_radii(
             library.names,
             library.radii,
@@ -370,14 +373,17 @@ class _Growth:
         if name in self.taken:
             raise LibraryError(f"shape names must be unique; repeated: {name}")
         config, mean = lib.face_config, lib.basis.mean
-        face = information_face(radii, config).ravel()
+        if config.grid == "polar":  # the reference information is at hand: only q is new
+            face = (lib.weights_map * sample_term(radii, config)).ravel()
+        else:
+            face = information_face(radii, config).ravel()
         n, c = self.n, self.n_components
         if n == self.radii.shape[0]:
             self._enlarge()
         components = self.components[:c]
         centered = face - mean
         omega = components @ centered
-        residual = centered - omega @ components
+        residual = centered - omega @ components if c < self.max_components else np.zeros(0)
         rho = float(np.linalg.norm(residual))
         if c < self.max_components and rho > _SPANNED * max(float(np.linalg.norm(centered)), 1e-300):
             # Gram-Schmidt (twice, for orthogonality to rounding) adds the new direction.
