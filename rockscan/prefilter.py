@@ -168,16 +168,17 @@ class Prefilter:
         n_first: int = DEFAULT_FIRST,
         n_reference: int = DEFAULT_REFERENCE,
         seed: int = 0,
+        min_shapes: int = EXACT_SCAN_LIMIT,
     ) -> Prefilter | None:
         """The prefilter of a library, or None for one scanned whole.
 
-        None when the library has at most ``EXACT_SCAN_LIMIT`` shapes, its
-        faces are not on the polar grid, or its basis has no more than
-        ``n_lead`` eigenfaces. Built from the basis alone (no faces).
+        None when the library has at most ``min_shapes`` shapes, its faces
+        are not on the polar grid, or its basis has no more than ``n_lead``
+        eigenfaces. Built from the basis alone (no faces).
         """
         n = len(library)
         weights = library.basis.weights
-        if n <= EXACT_SCAN_LIMIT or library.face_config.grid != "polar" or weights.shape[1] <= n_lead:
+        if n <= min_shapes or library.face_config.grid != "polar" or weights.shape[1] <= n_lead:
             return None
         rng = np.random.default_rng(seed)
         reference = np.sort(rng.choice(n, size=min(n, int(n_reference)), replace=False))
