@@ -349,6 +349,16 @@ class Library:
         # A cached property is a plain attribute of the instance once computed.
         object.__setattr__(self, "prefilter", prefilter)
 
+    def scanned_whole(self) -> Library:
+        """The same library without a prefilter: every match scans every shape (the
+        exhaustive answer a pruned scan is measured against)."""
+        copy = Library._unchecked(**{name: getattr(self, name) for name in self.__dataclass_fields__})
+        for cached in ("weights_map", "scan_templates"):
+            if cached in self.__dict__:
+                object.__setattr__(copy, cached, self.__dict__[cached])
+        copy.set_prefilter(None)
+        return copy
+
     @classmethod
     def _unchecked(cls, **fields: object) -> Library:
         """A library from fields already checked, in time independent of its size

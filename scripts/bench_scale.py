@@ -145,17 +145,7 @@ def median_ms(function, items) -> tuple[float, float]:  # type: ignore[no-untype
 
 def exhaustive(library: Library) -> Library:
     """The same library, scanned whole."""
-    copy = Library(
-        names=library.names,
-        radii=library.radii,
-        params=library.params,
-        interest=library.interest,
-        symmetry=library.symmetry,
-        face_config=library.face_config,
-        basis=library.basis,
-    )
-    copy.set_prefilter(None)
-    return copy
+    return library.scanned_whole()
 
 
 def load() -> str:

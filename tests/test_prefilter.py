@@ -33,20 +33,6 @@ def large_lib() -> Library:
     return library
 
 
-def _whole(library: Library) -> Library:
-    copy = Library(
-        names=library.names,
-        radii=library.radii,
-        params=library.params,
-        interest=library.interest,
-        symmetry=library.symmetry,
-        face_config=library.face_config,
-        basis=library.basis,
-    )
-    copy.set_prefilter(None)
-    return copy
-
-
 def _queries(library: Library, rng: np.random.Generator, n: int, noise: float = 0.2) -> list[np.ndarray]:
     """Library shapes turned at random, with radial noise up to ``noise``."""
     out = []
@@ -76,7 +62,7 @@ def test_the_bound_is_below_every_shapes_best_distance(large_lib):
 
 @pytest.mark.parametrize("metric", ["eigenspace", "face"])
 def test_pruned_scan_finds_the_exhaustive_nearest(large_lib, metric):
-    whole = _whole(large_lib)
+    whole = large_lib.scanned_whole()
     config = MatchConfig(metric=metric)
     for radii in _queries(large_lib, np.random.default_rng(2), 8):
         pruned, full = match_radii(radii, large_lib, config), match_radii(radii, whole, config)
