@@ -10,10 +10,23 @@ products, as Turk and Pentland do. A face ``Gamma`` projects to
 With every non-zero eigenvector kept these distances equal the distances
 between the faces less their common part outside face space: eigenfaces buy
 speed and compactness, not different answers.
+
+Large libraries (:meth:`EigenBasis.from_face_stream`). The L x L matrix grows
+as L**2 and its eigenproblem as L**3, while the faces' rank is bounded by the
+face grid (360 x 50 values) and, in practice, far below it: for random
+Superformula shapes all but 4e-5 of the variance lies in 256 directions. A
+large library's basis is therefore fitted on a random sample of its faces
+(exact, as above), truncated to ``n_components``, and every face of the
+library is then streamed through it in chunks: memory is linear in L and no
+face array of the whole library ever exists. A final Rayleigh-Ritz step turns
+the kept directions to the whole library's principal axes (eigenvalues of the
+whole library, mean of the whole library). What the truncation changes in the
+answers is measured by scripts/bench_scale.py (docs/scale.md).
 """
 
 from __future__ import annotations
 
+from collections.abc import Iterable
 from dataclasses import dataclass
 
 import numpy as np
@@ -22,7 +35,12 @@ from numpy.typing import ArrayLike, NDArray
 from rockscan._threads import one_blas_thread
 from rockscan.errors import ParameterError
 
-__all__ = ["EigenBasis"]
+__all__ = ["STREAM_COMPONENTS", "EigenBasis"]
+
+#: Eigenfaces a basis fitted by :meth:`EigenBasis.from_face_stream` keeps by default.
+STREAM_COMPONENTS = 128
+#: Faces a streamed basis is fitted on, at least (a random sample of the library).
+STREAM_FIT_FACES = 1024
 
 
 @dataclass(frozen=True, eq=False)
@@ -115,6 +133,68 @@ class EigenBasis:
         weights = centered @ components.T
         return cls(mean=mean, components=components, eigenvalues=values, weights=weights)
 
+    @classmethod
+    def from_face_stream(
+        cls, fit_faces: ArrayLike, chunks: Iterable[ArrayLike], *, n_components: int = STREAM_COMPONENTS
+    ) -> EigenBasis:
+        """Fit a truncated basis to a sample of faces, then stream a whole library through it.
+
+        Parameters
+        ----------
+        fit_faces : (n_fit, ...) array_like of float
+            A sample of the library's faces (e.g. drawn at random): the basis
+            directions are their exact eigenfaces (:meth:`from_faces`).
+        chunks : iterable of (n_chunk, ...) array_like of float
+            Every face of the library, in library order, a chunk at a time.
+        n_components : int, optional
+            Eigenfaces kept (at most ``n_fit - 1``, fewer if the sample's rank
+            is lower).
+
+        Returns
+        -------
+        EigenBasis
+            ``mean`` is the whole library's mean face; ``components`` the kept
+            directions turned to the library's principal axes within them,
+            ``eigenvalues`` the library's sums of squares along them, by
+            decreasing value; ``weights`` every library face's coordinates.
+
+        Notes
+        -----
+        Memory is one chunk of faces plus ``n_faces x n_components``
+        coordinates. A library face's part outside the kept directions is
+        dropped: its distance to itself stays 0, its distance from face space
+        (DFFS) is that part's norm.
+        """
+        if isinstance(n_components, bool) or int(n_components) < 1:
+            raise ParameterError("n_components must be at least 1")
+        fit = cls.from_faces(fit_faces, n_components=int(n_components))
+        start_mean, directions = fit.mean, fit.components
+        n_pixels = start_mean.size
+        face_sum = np.zeros(n_pixels)
+        coords = []
+        for chunk in chunks:
+            flat = np.asarray(chunk, dtype=np.float64).reshape(-1, n_pixels)
+            if not np.all(np.isfinite(flat)):
+                raise ParameterError("faces must be finite")
+            face_sum += flat.sum(axis=0)
+            coords.append((flat - start_mean) @ directions.T)
+        omega = np.concatenate(coords) if coords else np.zeros((0, directions.shape[0]))
+        if omega.shape[0] < 2:
+            raise ParameterError("an eigenface basis needs at least two faces")
+        # Rayleigh-Ritz: the library's own covariance within the kept directions.
+        # Their coordinates about the library mean are omega minus its mean, since
+        # directions @ (mean - start_mean) is the mean of omega.
+        centered = omega - omega.mean(axis=0)
+        values, vectors = np.linalg.eigh(centered.T @ centered)
+        order = np.argsort(values)[::-1]
+        values, vectors = np.maximum(values[order], 0.0), vectors[:, order]
+        return cls(
+            mean=face_sum / omega.shape[0],
+            components=vectors.T @ directions,
+            eigenvalues=values,
+            weights=centered @ vectors,
+        )
+
     @property
     def n_components(self) -> int:
         """Number of eigenfaces kept."""
@@ -159,17 +239,26 @@ class EigenBasis:
         return self.distances_and_residual(faces)[1]
 
     @one_blas_thread
-    def distances_and_residual(self, faces: ArrayLike) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    def distances_and_residual(
+        self, faces: ArrayLike, *, shapes: ArrayLike | None = None
+    ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
         """Both :meth:`distances` and :meth:`residual`, from one projection.
+
+        Parameters
+        ----------
+        faces : (..., *face_shape) array_like of float
+        shapes : (n,) array_like of int, optional
+            Only the distances to these library faces (default: all).
 
         Returns
         -------
-        eps : (..., n_faces) ndarray of float
+        eps : (..., n_faces) or (..., n) ndarray of float
         dffs : (...) ndarray of float
         """
         faces = np.asarray(faces, dtype=np.float64)
         omega = self.project(faces)
-        diff = omega[..., None, :] - self.weights
+        weights = self.weights if shapes is None else self.weights[np.asarray(shapes, dtype=np.int64)]
+        diff = omega[..., None, :] - weights
         eps = np.sqrt(np.einsum("...kc,...kc->...k", diff, diff))
         flat = faces.reshape(*omega.shape[:-1], self.mean.size) - self.mean
         inside = np.einsum("...c,...c->...", omega, omega)

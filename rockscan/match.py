@@ -30,6 +30,7 @@ rotations cost a few times one (see scripts/bench_core.py).
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING
@@ -44,6 +45,7 @@ from rockscan.information import information_face, sample_term
 
 if TYPE_CHECKING:
     from rockscan.library import Library
+    from rockscan.prefilter import Shortlist
 
 
 __all__ = [
@@ -278,7 +280,11 @@ class ScanTemplates:
 
     @one_blas_thread
     def squared_distances(
-        self, q: NDArray[np.float64], metrics: tuple[str, ...] = ("eigenspace",)
+        self,
+        q: NDArray[np.float64],
+        metrics: tuple[str, ...] = ("eigenspace",),
+        shapes: ArrayLike | None = None,
+        coordinates: tuple[NDArray[np.complex128], NDArray[np.float64]] | None = None,
     ) -> dict[str, NDArray[np.float64]]:
         """Squared distances for every rotation a and shape k.
 
@@ -289,16 +295,19 @@ class ScanTemplates:
         metrics : tuple of {"eigenspace", "face"}
             ``"eigenspace"``: ``eps_k(a)**2``, the paper's distance inside face
             space; ``"face"``: ``d_k(a)**2``, the distance between whole faces.
+        shapes : (n,) array_like of int, optional
+            Only these library shapes (default: all), as columns in this order.
+        coordinates : (spectrum, omega), optional
+            :meth:`coordinates` of ``q`` when already at hand.
 
         Returns
         -------
         dist_sq : dict of str to (n_angles, n_shapes) ndarray of float
             Row a is the sample turned back by a rays (``a * 360/n_angles`` deg).
         """
-        spectrum = np.fft.rfft(q, axis=0)
-        corr = self._correlate(spectrum, self.spectra)
-        omega = corr[:, : self.n_components] - self.eigen_offsets
-        base = self.omega_norm_sq[None, :] - 2.0 * (omega @ self.shape_weights.T)
+        spectrum, omega = self.coordinates(q) if coordinates is None else coordinates
+        rows = slice(None) if shapes is None else np.asarray(shapes, dtype=np.int64)
+        base = self.omega_norm_sq[None, rows] - 2.0 * (omega @ self.shape_weights[rows].T)
         out = {}
         for metric in metrics:
             if metric == "eigenspace":
@@ -307,6 +316,12 @@ class ScanTemplates:
                 norm_sq = self.centered_norm_sq(q, spectrum)
             out[metric] = np.maximum(norm_sq[:, None] + base, 0.0)
         return out
+
+    def coordinates(self, q: NDArray[np.float64]) -> tuple[NDArray[np.complex128], NDArray[np.float64]]:
+        """The spectrum of ``q`` along theta and the face-space coordinates ``omega(a)``
+        of the sample at every rotation, ``(n_angles, n_components)``."""
+        spectrum = np.fft.rfft(q, axis=0)
+        return spectrum, self._correlate(spectrum, self.spectra)[:, : self.n_components] - self.eigen_offsets
 
     def centered_norm_sq(
         self, q: NDArray[np.float64], spectrum: NDArray[np.complex128] | None = None
@@ -382,10 +397,12 @@ def _scan(
     *,
     scan: bool,
     q: NDArray[np.float64] | None = None,
+    shapes: Shortlist | None = None,
 ) -> dict[str, NDArray[np.float64]]:
     """Distances (not squared) per metric, (n_rotations, n_shapes).
 
-    ``q`` is the sample term on the polar grid when the caller has it already.
+    ``q`` is the sample term on the polar grid when the caller has it already;
+    ``shapes`` limits the polar scan to those library shapes.
     """
     config = library.face_config
     if config.grid == "polar" and q is None:
@@ -397,7 +414,11 @@ def _scan(
         return {m: eps if m == "eigenspace" else np.sqrt(eps**2 + residual**2) for m in metrics}
     if config.grid == "polar":
         assert q is not None
-        squared = library.scan_templates.squared_distances(q, metrics)
+        templates = library.scan_templates
+        if shapes is None:
+            squared = templates.squared_distances(q, metrics)
+        else:
+            squared = templates.squared_distances(q, metrics, shapes.index, (shapes.spectrum, shapes.omega))
         return {m: np.sqrt(v) for m, v in squared.items()}
     # The paper's Cartesian grid map: every rotation needs its own face.
     turned = np.stack([np.roll(radii, -a) for a in range(config.n_angles)])
@@ -439,7 +460,11 @@ def match_radii(radii: ArrayLike, library: Library, config: MatchConfig | None =
     metrics = tuple(dict.fromkeys((w_metric, config.angle_metric)))
     # The sample term is computed once: for the scan and for the nearest shape's face.
     q = sample_term(radii, face_config) if face_config.grid == "polar" else None
-    dist = _scan(radii, library, metrics, scan=config.scan, q=q)
+    # A large library scans only the shapes a lower bound cannot rule out
+    # (prefilter.py); None: every shape.
+    prefilter = library.prefilter if config.scan else None
+    shortlist = None if prefilter is None else prefilter.select(q, library, w_metric)
+    dist = _scan(radii, library, metrics, scan=config.scan, q=q, shapes=shortlist)
     # The sensor distance with the sample's own noise taken out (rockscan.calibrate):
     # the ranking is the same, and the cutoffs were calibrated on it.
     sensor_sq = library.sensor_metric.squared_distances(radii)
@@ -449,16 +474,29 @@ def match_radii(radii: ArrayLike, library: Library, config: MatchConfig | None =
     chosen = dist[w_metric]
     best_shift = np.argmin(chosen, axis=0)
     w = chosen[best_shift, np.arange(chosen.shape[1])]
+    if shortlist is not None:  # every shape's w, estimated where not scanned
+        w, best_shift = shortlist.widen(w, best_shift)
     if config.metric == "auto" and _clean_enough(radii, library):
         metric = "eigenspace"
     # Ranked before the noise is taken out: distances below the noise would tie at 0.
     k = int(np.argmin(sensor_sq if metric == "sensor" else w))
+    col = k  # the nearest shape's column of dist
+    if shortlist is not None:
+        hit = np.flatnonzero(shortlist.index == k)
+        if hit.size:
+            col = int(hit[0])
+        else:
+            # The sensor distance chose a shape the eigenspace bound left out: scan it alone.
+            alone = dataclasses.replace(shortlist, index=np.array([k]), is_reference=np.array([False]))
+            dist = _scan(radii, library, metrics, scan=config.scan, q=q, shapes=alone)
+            col = 0
+            best_shift[k] = int(np.argmin(dist[w_metric][:, 0]))
     step_deg = 360.0 / face_config.n_angles
     angles = np.mod(best_shift * step_deg, 360.0) if config.scan else np.zeros(w.size)
     angle_deg = 0.0
     shift_k = int(best_shift[k])
     if config.scan:
-        along = dist[config.angle_metric][:, k]
+        along = dist[config.angle_metric][:, col]
         shift_k = int(np.argmin(along))
         shift = float(shift_k) + (_parabola_offset(along**2, shift_k) if config.refine else 0.0)
         # Every angle alpha + j*360/order fits a shape of that symmetry: report
@@ -471,8 +509,8 @@ def match_radii(radii: ArrayLike, library: Library, config: MatchConfig | None =
             angle_deg = 0.0
         angles[k] = angle_deg
     face = _face_at(radii, library, int(best_shift[k]), q)
-    eps_all, dffs = library.basis.distances_and_residual(face)
-    eps_best, residual = float(eps_all[k]), float(dffs)
+    eps_k, dffs = library.basis.distances_and_residual(face, shapes=[k])
+    eps_best, residual = float(eps_k[0]), float(dffs)
     # The scan's distances come from expanded squares, whose rounding leaves
     # ~1e-8 where the truth is 0; the nearest shape's is recomputed directly
     # so that a library shape matched to itself scores exactly w = 0, MScore 1.

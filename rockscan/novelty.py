@@ -25,22 +25,33 @@ Choices (documented in docs/triage.md, "Novelty"):
   to its nearest other library shape (:func:`default_threshold`): a sample is
   new when it lies farther from everything known than the library's own
   shapes lie, halfway, from each other.
+* **Growth without a rebuild.** :meth:`ObservedShapes.with_shape` projects
+  the new face onto the known basis and adds the part outside it as one more
+  eigenface (Gram-Schmidt), so every face stays exactly in face space and
+  whole-face distances equal a rebuilt library's; past
+  ``MAX_GROWN_COMPONENTS`` eigenfaces a new shape is projected only. The
+  arrays grow in place with room to spare: an addition costs time independent
+  of the library's size (scripts/bench_scale.py measures 1,000 against
+  100,000 shapes). A grown basis is not ordered by eigenvalue.
 """
 
 from __future__ import annotations
 
 import math
 import re
-from dataclasses import dataclass
+from dataclasses import dataclass, field, replace
 
 import numpy as np
-from numpy.typing import ArrayLike
+from numpy.typing import ArrayLike, NDArray
 
 from rockscan._choices import NOVELTY_METRICS
+from rockscan.eigen import EigenBasis
 from rockscan.errors import LibraryError, ParameterError
-from rockscan.information import information_face
-from rockscan.library import Library
-from rockscan.match import MatchConfig, match_radii, rotation_scores
+from rockscan.information import information_face, sample_term
+from rockscan.library import EXACT_LIMIT, Library
+from rockscan.match import MatchConfig, _template_spectra, match_radii, rotation_scores
+from rockscan.polar import symmetry_order
+from rockscan.prefilter import EXACT_SCAN_LIMIT, Prefilter, features_of
 
 __all__ = [
     "NOVELTY_METRICS",
@@ -183,6 +194,7 @@ class ObservedShapes:
     threshold: float
     metric: str = "face"
     n_seed: int = 0
+    _growth: _Growth | None = field(default=None, repr=False, compare=False)
 
     def __post_init__(self) -> None:
         NoveltyConfig(threshold=self.threshold, metric=self.metric)
@@ -201,6 +213,9 @@ class ObservedShapes:
         threshold = (
             default_threshold(library, metric=config.metric) if config.threshold is None else config.threshold
         )
+        if len(library) > EXACT_LIMIT:
+            # A large library's faces are not kept; its shapes and basis seed it as they are.
+            return cls(library=library, threshold=float(threshold), metric=config.metric, n_seed=len(library))
         seed = Library.from_radii(
             library.names,
             library.radii,
@@ -264,7 +279,9 @@ class ObservedShapes:
         # match_radii gives every shape's distance at its best rotation, the
         # nearest one recomputed exactly (a known shape scores 0, not ~1e-6).
         match = match_radii(radii, self.library, MatchConfig(metric=self.metric))
-        score = float(match.distances[self.library.index(match.nearest)])
+        # The nearest shape's w is the least (its exact recomputation differs from
+        # the scan's by rounding); no search of the names, which grow with the mission.
+        score = float(np.min(match.distances))
         return Novelty(score=score, nearest=match.nearest, novel=score > self.threshold)
 
     def with_shape(self, name: str, radii: ArrayLike) -> ObservedShapes:
@@ -287,12 +304,171 @@ class ObservedShapes:
             raise ParameterError(
                 f"radii must be {lib.face_config.n_angles} values (the library's n_angles), got {radii.shape}"
             )
-        grown = Library.from_radii(
-            (*lib.names, name),
-            np.vstack([lib.radii, radii[None, :]]),
-            face_config=lib.face_config,
-            params=(*lib.params, None),
-            interest=np.append(lib.interest, 1.0),
-            faces=np.concatenate([lib.faces(), information_face(radii, lib.face_config)[None]]),
+        if not np.all(np.isfinite(radii)) or np.any(radii <= 0):
+            raise ParameterError("radii must be finite and positive")
+        growth = self._growth if self._growth is not None and self._growth.latest is lib else _Growth(lib)
+        grown = growth.append(name, radii)
+        return ObservedShapes(
+            library=grown, threshold=self.threshold, metric=self.metric, n_seed=self.n_seed, _growth=growth
         )
-        return ObservedShapes(library=grown, threshold=self.threshold, metric=self.metric, n_seed=self.n_seed)
+
+
+#: An observed library's basis grows by one eigenface per new shape (the part
+#: of its face outside face space) until it has this many; later shapes are
+#: projected onto it.
+MAX_GROWN_COMPONENTS = 256
+#: A new face whose part outside face space is below this fraction of its
+#: distance from the mean adds no eigenface (it is already spanned).
+_SPANNED = 1e-9
+
+
+class _Growth:
+    """Arrays with room to grow that successive observed libraries share.
+
+    Each library made by :meth:`append` sees the first rows of the buffers
+    (views); only the newest may grow in place, so a library made earlier
+    never changes. Growing any other copies the buffers first (once).
+    Capacity doubles when full, so an addition costs, on average, time
+    independent of the library's size.
+    """
+
+    def __init__(self, library: Library) -> None:
+        n = len(library)
+        basis = library.basis
+        self.n, self.n_components = n, basis.n_components
+        self.max_components = max(self.n_components, MAX_GROWN_COMPONENTS)
+        cap = max(2 * n, n + 64)
+        self.radii = _grown(library.radii, cap)
+        self.interest = _grown(library.interest, cap)
+        self.symmetry = _grown(library.symmetry, cap)
+        self.weights = np.zeros((cap, self.max_components))
+        self.weights[:n, : self.n_components] = basis.weights
+        self.components = np.zeros((self.max_components, basis.mean.size))
+        self.components[: self.n_components] = basis.components
+        self.eigenvalues = _grown(basis.eigenvalues, self.max_components)
+        templates = library.scan_templates
+        self.templates = templates
+        self.spectra = np.zeros((*templates.spectra.shape[:2], self.max_components), templates.spectra.dtype)
+        self.spectra[:, :, : self.n_components] = templates.spectra
+        self.eigen_offsets = _grown(templates.eigen_offsets, self.max_components)
+        self.omega_norm_sq = _grown(templates.omega_norm_sq, cap)
+        self.names, self.params = library.names, library.params
+        self.taken = set(library.names)
+        self.prefilter: Prefilter | None = None
+        self._start_prefilter(library.prefilter, cap)
+        self.latest = library
+
+    def _start_prefilter(self, prefilter: Prefilter | None, cap: int) -> None:
+        """Buffers for the prefilter's rows, once the library has one."""
+        self.prefilter = prefilter
+        if prefilter is not None:
+            width = prefilter.n_lead + -(-(self.max_components - prefilter.n_lead) // prefilter.group)
+            self.features = np.zeros((cap, width), np.float32)
+            self.features[: prefilter.n_shapes, : prefilter.features.shape[1]] = prefilter.features
+            self.feature_norm_sq = _grown(prefilter.norm_sq, cap)
+
+    def append(self, name: str, radii: NDArray[np.float64]) -> Library:
+        """The library with one more shape, grown in place (see the class docstring)."""
+        lib = self.latest
+        if name in self.taken:
+            raise LibraryError(f"shape names must be unique; repeated: {name}")
+        config, mean = lib.face_config, lib.basis.mean
+        if config.grid == "polar":  # the reference information is at hand: only q is new
+            face = (lib.weights_map * sample_term(radii, config)).ravel()
+        else:
+            face = information_face(radii, config).ravel()
+        n, c = self.n, self.n_components
+        if n == self.radii.shape[0]:
+            self._enlarge()
+        components = self.components[:c]
+        centered = face - mean
+        omega = components @ centered
+        residual = centered - omega @ components if c < self.max_components else np.zeros(0)
+        rho = float(np.linalg.norm(residual))
+        if c < self.max_components and rho > _SPANNED * max(float(np.linalg.norm(centered)), 1e-300):
+            # Gram-Schmidt (twice, for orthogonality to rounding) adds the new direction.
+            residual -= (components @ residual) @ components
+            direction = residual / np.linalg.norm(residual)
+            self.components[c] = direction
+            self.eigenvalues[c] = rho**2
+            channel = (direction.reshape(config.face_shape) * lib.weights_map)[None]
+            self.spectra[:, :, c] = _template_spectra(channel, self.spectra.dtype)[:, :, 0]
+            self.eigen_offsets[c] = direction @ mean
+            omega = np.append(omega, direction @ centered)
+            c += 1
+        self.weights[n, :c] = omega
+        self.omega_norm_sq[n] = omega @ omega
+        self.radii[n] = radii / radii.mean()
+        self.interest[n] = 1.0
+        self.symmetry[n] = symmetry_order(radii)
+        self.names, self.params = (*self.names, name), (*self.params, None)
+        self.taken.add(name)
+        self.n, self.n_components = n + 1, c
+        self.latest = self._library()
+        return self.latest
+
+    def _library(self) -> Library:
+        n, c, lib = self.n, self.n_components, self.latest
+        basis = EigenBasis(
+            mean=lib.basis.mean,
+            components=self.components[:c],
+            eigenvalues=self.eigenvalues[:c],
+            weights=self.weights[:n, :c],
+        )
+        grown = Library._unchecked(
+            names=self.names,
+            radii=self.radii[:n],
+            params=self.params,
+            interest=self.interest[:n],
+            symmetry=self.symmetry[:n],
+            face_config=lib.face_config,
+            basis=basis,
+        )
+        self.templates = replace(
+            self.templates,
+            spectra=self.spectra[:, :, :c],
+            eigen_offsets=self.eigen_offsets[:c],
+            shape_weights=self.weights[:n, :c],
+            omega_norm_sq=self.omega_norm_sq[:n],
+        )
+        object.__setattr__(grown, "weights_map", lib.weights_map)
+        object.__setattr__(grown, "scan_templates", self.templates)
+        if self.prefilter is None:
+            if n > EXACT_SCAN_LIMIT:  # grown past the size scanned whole: built once
+                self._start_prefilter(grown.prefilter, self.radii.shape[0])
+            else:
+                grown.set_prefilter(None)
+            return grown
+        row = features_of(basis.weights[n - 1][None], self.prefilter.n_lead, self.prefilter.group)[0]
+        self.features[n - 1] = 0.0
+        self.features[n - 1, : row.size] = row
+        self.feature_norm_sq[n - 1] = row @ row
+        # The prefilter's own constructor would re-derive every row's norm: O(n).
+        grown_filter = object.__new__(Prefilter)
+        for key, value in (
+            ("features", self.features[:n]),
+            ("n_lead", self.prefilter.n_lead),
+            ("group", self.prefilter.group),
+            ("reference", self.prefilter.reference),
+            ("n_first", self.prefilter.n_first),
+            ("norm_sq", self.feature_norm_sq[:n]),
+        ):
+            object.__setattr__(grown_filter, key, value)
+        self.prefilter = grown_filter
+        grown.set_prefilter(grown_filter)
+        return grown
+
+    def _enlarge(self) -> None:
+        cap = 2 * self.radii.shape[0]
+        for name in ("radii", "interest", "symmetry", "weights", "omega_norm_sq"):
+            setattr(self, name, _grown(getattr(self, name), cap))
+        if self.prefilter is not None:
+            self.features = _grown(self.features, cap)
+            self.feature_norm_sq = _grown(self.feature_norm_sq, cap)
+
+
+def _grown(array: NDArray, rows: int) -> NDArray:
+    """A zero-padded copy of ``array`` with ``rows`` rows."""
+    out = np.zeros((rows, *np.shape(array)[1:]), dtype=np.asarray(array).dtype)
+    out[: len(array)] = array
+    return out

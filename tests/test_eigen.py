@@ -98,3 +98,95 @@ def test_errors(rng):
         basis.project(np.zeros(7))
     with pytest.raises(ValueError, match="read-only"):
         basis.mean[0] = 1.0
+
+
+# ---------------------------------------------------------------- large libraries
+
+
+def _low_rank_faces(rng, n=40, rank=5, shape=(12, 5)):
+    """Faces that all lie in an affine space of ``rank`` dimensions."""
+    base = rng.normal(size=(rank, int(np.prod(shape))))
+    return (rng.normal(size=(n, rank)) @ base + rng.normal(size=base.shape[1])).reshape(n, *shape)
+
+
+def test_streamed_basis_on_a_sample_that_spans_equals_the_exact_one(rng):
+    faces = _low_rank_faces(rng)
+    exact = EigenBasis.from_faces(faces)
+    chunks = (faces[i : i + 7] for i in range(0, len(faces), 7))
+    streamed = EigenBasis.from_face_stream(faces[::4], chunks, n_components=8)
+    assert exact.n_components == streamed.n_components == 5
+    np.testing.assert_allclose(streamed.mean, exact.mean, atol=1e-12)
+    np.testing.assert_allclose(streamed.eigenvalues, exact.eigenvalues, rtol=1e-9)
+    sample = rng.normal(size=(3, 12, 5))
+    np.testing.assert_allclose(streamed.distances(sample), exact.distances(sample), rtol=1e-9)
+    np.testing.assert_allclose(streamed.residual(sample), exact.residual(sample), rtol=1e-9)
+    np.testing.assert_allclose(streamed.components @ streamed.components.T, np.eye(5), atol=1e-12)
+
+
+def test_streamed_basis_truncates_to_the_strongest_directions(rng):
+    faces = rng.normal(size=(30, 60)) * np.linspace(3, 0.1, 60)
+    streamed = EigenBasis.from_face_stream(faces, [faces[:11], faces[11:]], n_components=4)
+    exact = EigenBasis.from_faces(faces, n_components=4)
+    assert streamed.n_components == 4
+    # Fitted on every face, the kept directions are the exact basis's, turned.
+    np.testing.assert_allclose(
+        streamed.components.T @ streamed.components, exact.components.T @ exact.components, atol=1e-10
+    )
+    # A library face's own distance is 0 whatever was dropped.
+    np.testing.assert_allclose(np.diag(streamed.distances(faces)), 0, atol=1e-10)
+
+
+def test_streamed_basis_errors(rng):
+    with pytest.raises(ParameterError, match="at least 1"):
+        EigenBasis.from_face_stream(rng.normal(size=(4, 6)), [], n_components=0)
+    with pytest.raises(ParameterError, match="two faces"):
+        EigenBasis.from_face_stream(rng.normal(size=(4, 6)), [rng.normal(size=(1, 6))], n_components=2)
+    with pytest.raises(ParameterError, match="finite"):
+        EigenBasis.from_face_stream(rng.normal(size=(4, 6)), [np.full((3, 6), np.nan)], n_components=2)
+
+
+def test_distances_to_some_shapes_only(rng):
+    faces = _faces(rng)
+    basis = EigenBasis.from_faces(faces)
+    sample = rng.normal(size=(12, 5))
+    eps, dffs = basis.distances_and_residual(sample, shapes=[4, 1])
+    np.testing.assert_allclose(eps, basis.distances(sample)[[4, 1]])
+    assert dffs == pytest.approx(basis.residual(sample))
+
+
+def test_large_build_helpers_equal_the_per_shape_ones(default_specs):
+    from rockscan.information import FaceConfig, information_face
+    from rockscan.library import _FaceTable, shape_radii, shapes_radii, symmetry_orders
+    from rockscan.polar import symmetry_order
+    from rockscan.render import random_superformula
+
+    params = [s.params for s in default_specs if s.params is not None]
+    params += [random_superformula(np.random.default_rng(i)) for i in range(20)]
+    radii = shapes_radii(params, 360)
+    expected = np.array([shape_radii(p, 360) for p in params])
+    np.testing.assert_allclose(radii, expected, rtol=1e-12, atol=1e-12)
+    np.testing.assert_array_equal(symmetry_orders(expected), [symmetry_order(r) for r in expected])
+    for config in (
+        FaceConfig(),
+        FaceConfig(kind="information-shape", reference=params[0]),
+        FaceConfig(sigma=0.05),
+    ):
+        np.testing.assert_allclose(
+            _FaceTable(config).faces(expected), information_face(expected, config), atol=1e-11
+        )
+
+
+def test_a_library_built_the_large_way_matches_its_own_shapes(default_specs):
+    from rockscan.library import Library
+    from rockscan.match import match_radii
+
+    shapes = [s for s in default_specs if s.params is not None]
+    large_way = Library.from_shapes(shapes, exact_limit=0, n_components=6)
+    exact = Library.from_shapes(shapes)
+    assert large_way.basis.n_components == 6
+    np.testing.assert_allclose(large_way.radii, exact.radii, rtol=1e-12)
+    np.testing.assert_array_equal(large_way.symmetry, exact.symmetry)
+    for k in (0, 3, len(shapes) - 1):
+        m = match_radii(np.roll(exact.radii[k], 40), large_way)
+        assert m.nearest == shapes[k].name
+        assert m.distance == pytest.approx(0.0, abs=1e-6)

@@ -12,6 +12,7 @@ from rockscan.errors import LibraryError, ParameterError
 from rockscan.information import FaceConfig, information_face
 from rockscan.io import load_library, save_library
 from rockscan.library import Library, ShapeSpec, shape_radii
+from rockscan.match import MatchConfig, match_radii
 from rockscan.novelty import (
     NoveltyConfig,
     ObservedShapes,
@@ -224,3 +225,59 @@ def test_rendered_rocks_new_shapes_are_novel_once(default_lib):
         grown = observed.with_shape(f"seen-{name}", radii(params, 21))
         second = grown.assess(radii(params, 22))
         assert not second.novel and second.nearest == f"seen-{name}", (name, second)
+
+
+# ---------------------------------------------------------------- growth without a rebuild
+
+
+def _grown(lib: Library, count: int, seed: int) -> ObservedShapes:
+    observed = ObservedShapes.from_library(lib, NoveltyConfig(threshold=0.1))
+    rng = np.random.default_rng(seed)
+    for i in range(count):
+        radii = shape_radii(random_superformula(rng), lib.face_config.n_angles)
+        observed = observed.with_shape(f"seen-{i}", radii)
+    return observed
+
+
+def test_growing_equals_a_rebuild(small_lib):
+    observed = _grown(small_lib, 12, seed=4)
+    grown = observed.library
+    rebuilt = Library.from_radii(grown.names, grown.radii, face_config=small_lib.face_config)
+    assert len(grown) == len(small_lib) + 12
+    assert grown.basis.n_components == rebuilt.basis.n_components == len(grown) - 1
+    np.testing.assert_allclose(
+        grown.basis.components @ grown.basis.components.T, np.eye(len(grown) - 1), atol=1e-9
+    )
+    rng = np.random.default_rng(9)
+    for _ in range(4):
+        sample = np.roll(shape_radii(random_superformula(rng), 72), 11) * (1 + 0.05 * rng.standard_normal(72))
+        ours = match_radii(sample, grown, MatchConfig(metric="face"))
+        theirs = match_radii(sample, rebuilt, MatchConfig(metric="face"))
+        assert ours.nearest == theirs.nearest
+        # The scan's templates are single precision: distances agree to their rounding.
+        np.testing.assert_allclose(ours.distances, theirs.distances, atol=1e-5)
+        np.testing.assert_allclose(ours.distances, _brute_force_distances(sample, rebuilt), atol=1e-5)
+
+
+def test_growing_keeps_earlier_libraries_and_branches(small_lib):
+    first = _grown(small_lib, 3, seed=5)
+    names = first.library.names
+    radii = shape_radii(SuperformulaParams(5, 5, 2, 7, 7), 72)
+    a = first.with_shape("seen-a", radii)
+    b = first.with_shape("seen-b", radii * 1.1)  # from the same parent: copies, leaves a alone
+    assert first.library.names == names and len(first.library.radii) == len(names)
+    assert a.library.names[-1] == "seen-a" and b.library.names[-1] == "seen-b"
+    np.testing.assert_allclose(a.library.radii[-1], b.library.radii[-1])
+    assert a.assess(radii).score == pytest.approx(0.0, abs=1e-6)
+    with pytest.raises(LibraryError, match="unique"):
+        a.with_shape("seen-a", radii)
+
+
+def test_saved_grown_library_loads(small_lib, tmp_path):
+    observed = _grown(small_lib, 4, seed=6)
+    save_library(observed.library, tmp_path / "seen.npz")
+    loaded = load_library(tmp_path / "seen.npz")
+    again = ObservedShapes.from_file(loaded, small_lib, NoveltyConfig(threshold=0.1))
+    sample = observed.library.radii[-1]
+    assert again.assess(sample).score == pytest.approx(observed.assess(sample).score, abs=1e-6)
+    assert again.n_observed == 4

@@ -1,0 +1,103 @@
+"""The bound that prunes the rotation scan of large libraries (prefilter.py)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from rockscan.information import FaceConfig, sample_term
+from rockscan.library import Library
+from rockscan.match import MatchConfig, match_radii, rotation_scores
+from rockscan.prefilter import Prefilter, features_of
+
+#: Coarse faces (72 rays of 20 sections) keep a library of hundreds of shapes fast.
+SMALL_FACE = FaceConfig(n_angles=72, resolution=0.05)
+
+
+def _random_radii(rng: np.random.Generator, n: int, n_angles: int = 72) -> np.ndarray:
+    """Smooth random outlines: a few Fourier harmonics of random size and phase."""
+    theta = 2 * np.pi * np.arange(n_angles) / n_angles
+    harmonics = np.arange(1, 7)
+    size = rng.uniform(0, 0.12, (n, harmonics.size)) / np.sqrt(harmonics)
+    phase = rng.uniform(0, 2 * np.pi, (n, harmonics.size))
+    return 1 + np.einsum("nh,nha->na", size, np.cos(harmonics[None, :, None] * theta + phase[..., None]))
+
+
+@pytest.fixture(scope="module")
+def large_lib() -> Library:
+    """200 shapes, pruned as a library of more than ``EXACT_SCAN_LIMIT`` shapes is."""
+    rng = np.random.default_rng(3)
+    n = 200
+    library = Library.from_radii([f"s{i}" for i in range(n)], _random_radii(rng, n), face_config=SMALL_FACE)
+    library.set_prefilter(Prefilter.from_library(library, min_shapes=0, n_first=8, n_reference=16))
+    return library
+
+
+def _queries(library: Library, rng: np.random.Generator, n: int, noise: float = 0.2) -> list[np.ndarray]:
+    """Library shapes turned at random, with radial noise up to ``noise``."""
+    out = []
+    for _ in range(n):
+        radii = np.roll(library.radii[rng.integers(len(library))], int(rng.integers(72)))
+        out.append(radii * (1 + rng.uniform(0, noise) * rng.standard_normal(72)))
+    return out
+
+
+def test_small_libraries_are_scanned_whole(default_lib, paper_lib):
+    assert default_lib.prefilter is None and paper_lib.prefilter is None
+
+
+def test_the_bound_is_below_every_shapes_best_distance(large_lib):
+    prefilter = large_lib.prefilter
+    assert prefilter is not None
+    templates = large_lib.scan_templates
+    for radii in _queries(large_lib, np.random.default_rng(1), 2, noise=0.05):
+        q = sample_term(radii, SMALL_FACE)
+        _, omega = templates.coordinates(q)
+        exact = rotation_scores(radii, large_lib, metric="eigenspace").min(axis=0) ** 2
+        bound = prefilter.bounds(omega)
+        assert np.all(bound <= exact + 1e-9)
+        # and it is tight enough to prune: most shapes are bounded above the nearest one
+        assert np.mean(bound > exact.min()) > 0.5
+
+
+@pytest.mark.parametrize("metric", ["eigenspace", "face"])
+def test_pruned_scan_finds_the_exhaustive_nearest(large_lib, metric):
+    whole = large_lib.scanned_whole()
+    config = MatchConfig(metric=metric)
+    for radii in _queries(large_lib, np.random.default_rng(2), 8):
+        pruned, full = match_radii(radii, large_lib, config), match_radii(radii, whole, config)
+        assert pruned.nearest == full.nearest
+        assert pruned.distance == pytest.approx(full.distance, rel=1e-6, abs=1e-9)
+        assert pruned.angle_deg == pytest.approx(full.angle_deg, abs=1e-6)
+        # MScore's mean uses estimates for the shapes left out: close, not equal.
+        assert pruned.mscore == pytest.approx(full.mscore, abs=0.03)
+        k = large_lib.index(pruned.nearest)
+        assert pruned.distances[k] == pytest.approx(full.distances[k], rel=1e-6, abs=1e-9)
+        assert np.all(pruned.distances >= pruned.distances[k])
+
+
+def test_a_library_shape_matches_itself_through_the_pruned_scan(large_lib):
+    for k in (0, 123, len(large_lib) - 1):
+        m = match_radii(np.roll(large_lib.radii[k], 5), large_lib)
+        assert m.nearest == large_lib.names[k]
+        assert m.distance == pytest.approx(0.0, abs=1e-6)
+
+
+def test_group_norms_bound_the_coordinates_distance(rng):
+    a, b = rng.normal(size=(2, 40))
+    fa, fb = features_of(a[None], 8, 5)[0], features_of(b[None], 8, 5)[0]
+    assert fa.shape == (8 + 32 // 5 + 1,)
+    assert np.linalg.norm(fa - fb) <= np.linalg.norm(a - b) * (1 + 1e-6)
+    np.testing.assert_allclose(fa[:8], a[:8], rtol=1e-6)
+    np.testing.assert_allclose(np.linalg.norm(fa), np.linalg.norm(a), rtol=1e-6)
+
+
+def test_prefilter_grows_by_one_shape(large_lib, rng):
+    prefilter = large_lib.prefilter
+    omega = rng.normal(size=large_lib.basis.n_components)
+    grown = prefilter.with_shape(omega)
+    assert grown.n_shapes == prefilter.n_shapes + 1
+    np.testing.assert_allclose(
+        grown.features[-1], features_of(omega[None], prefilter.n_lead, prefilter.group)[0]
+    )
+    assert isinstance(grown, Prefilter)
