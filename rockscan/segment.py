@@ -89,6 +89,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from rockscan._choices import POLARITIES
+from rockscan._seg_split import split_rocks, territories
 from rockscan.errors import NoRockFoundError, ParameterError
 
 __all__ = ["RockMask", "SegmentConfig", "Segmentation", "segment", "to_gray"]
@@ -348,8 +349,9 @@ def segment(
         detect_covered[1] / small.shape[1] / scale_rowcol[1],
     )
     rocks = []
-    for region in best.regions:
-        rock = _outline_rock(work, arr.dtype, region, up, best, config)
+    owners = territories(best.regions)
+    for index, region in enumerate(best.regions, start=1):
+        rock = _outline_rock(work, arr.dtype, region, owners == index, up, best, config)
         if rock is not None:
             rocks.append(rock)
     if not rocks:
@@ -662,7 +664,9 @@ def _detect(
         # min_contrast from it, so that noise and JPEG blocks are no rock.
         z = _robust_z(flat, stat_ground, config.min_contrast / config.z_detect)
         last = round_ == config.iterations
-        found = _best_regions(z, config, min_area, all_rocks, split=last)
+        # Before the last round every rock counts, not only the main one: a
+        # neighbour intruding into a crop is no ground for the next round.
+        found = _best_regions(z, config, min_area, all_rocks or not last, split=last)
         if found is None:
             return None
         outliers = np.abs(z) > config.z_grow
@@ -717,9 +721,6 @@ def _best_regions(
 
     rows, cols = z.shape
     best = None
-    band = np.ones((5, 5), np.uint8)
-    edge = np.zeros((rows, cols), bool)
-    edge[0], edge[-1], edge[:, 0], edge[:, -1] = True, True, True, True
     polarities = ("light", "dark") if config.polarity == "auto" else (config.polarity,)
     for polarity in polarities:
         signed = z if polarity == "light" else -z
@@ -729,49 +730,39 @@ def _best_regions(
         if count <= 1:
             continue
         seeded = np.bincount(labels[signed > config.z_detect], minlength=count)[1:] > 0
-        areas = stats[1:, cv2.CC_STAT_AREA].astype(np.float64)
-        usable = seeded & (areas >= min_area)
-        if not usable.any():
+        areas = stats[1:, cv2.CC_STAT_AREA]
+        usable = np.flatnonzero(seeded & (areas >= min_area)) + 1
+        if usable.size == 0:
             continue
-        # Edge step: mean contrast just inside a region less just outside it.
-        # A rock's edge is a step as high as its contrast; a blob of texture
-        # fades out and barely steps at its edge.
-        inner = (candidate - cv2.erode(candidate, band)).astype(bool)
-        outer_labels = cv2.dilate(labels.astype(np.float32), band).astype(np.int64)
-        outer = (labels == 0) & (outer_labels > 0)
-        clipped = np.minimum(signed, _Z_CAP)
-        inner_n = np.bincount(labels[inner], minlength=count)[1:]
-        inner_sum = np.bincount(labels[inner], weights=clipped[inner], minlength=count)[1:]
-        outer_n = np.bincount(outer_labels[outer], minlength=count)[1:]
-        outer_sum = np.bincount(outer_labels[outer], weights=clipped[outer], minlength=count)[1:]
-        step = inner_sum / np.maximum(inner_n, 1) - outer_sum / np.maximum(outer_n, 1)
-        # The share of a region's edge that is the frame's edge: a rock lies
-        # inside the frame, the ground (or a lighting residue) runs along it.
-        # The inner band is two pixels wide: half its count is the perimeter.
-        perimeter = np.maximum(inner_n / 2.0, 1.0)
-        on_edge = np.bincount(labels[edge], minlength=count)[1:]
-        share = np.clip(on_edge / perimeter, 0.0, 1.0)
-        # Rocks are solid; the ground between several rocks, or a blob of
-        # texture, has a long ragged edge for its area (1 for a disc).
-        compactness = np.minimum(4.0 * np.pi * areas / perimeter**2, 1.0)
-        scores = areas * np.maximum(step, 0.0) * compactness * (1.0 - share) ** 2
-        scores = np.where(usable, scores, -1.0)
+        if split:
+            # Touching rocks grow into one region: one region per rock (rockscan._seg_split).
+            regions = [
+                part
+                for i in usable
+                for part in split_rocks(signed, labels == i, min_area, config.z_grow)
+                if part.sum() >= min_area and (signed[part] > config.z_detect).any()
+            ]
+        else:
+            regions = [labels == i for i in usable]
+        if not regions:
+            continue
+        scores = _region_scores(signed, regions)
+        if not all_rocks:
+            # A crop is centred on its rock: of two rocks alike, the nearer the centre.
+            scores = scores * _centre_weight(regions, (rows, cols))
         main = int(np.argmax(scores))
         total = float(scores[main])
         if total <= 0 or (best is not None and total <= best[0]):
             continue
+        areas_r = np.array([float(r.sum()) for r in regions])
         if all_rocks:
             # Another rock stands out about as clearly as the main one; ground
             # texture that passes the thresholds scores far less.
-            keep = (
-                usable
-                & (scores >= _RELATIVE_SCORE * total)
-                & (areas >= config.min_relative_area * areas[main])
-            )
+            keep = (scores >= _RELATIVE_SCORE * total) & (areas_r >= config.min_relative_area * areas_r[main])
             regions = [
                 part
                 for i in np.flatnonzero(keep)
-                for part in (_split(labels == i + 1, signed, min_area) if split else [labels == i + 1])
+                for part in (_split(regions[i], signed, min_area) if split else [regions[i]])
             ]
             if not regions:
                 continue
@@ -779,10 +770,70 @@ def _best_regions(
             regions = [r for r in regions if r.sum() >= config.min_relative_area * largest]
             regions.sort(key=lambda r: -int(r.sum()))
         else:
-            parts = _split(labels == main + 1, signed, min_area) if split else []
-            regions = [max(parts, key=lambda r: int(r.sum()))] if parts else [labels == main + 1]
+            parts = _split(regions[main], signed, min_area) if split else []
+            regions = [max(parts, key=lambda r: int(r.sum()))] if parts else [regions[main]]
         best = (total, regions, polarity)
     return best
+
+
+def _region_scores(signed: NDArray[np.float32], regions: list[NDArray[np.bool_]]) -> NDArray[np.float64]:
+    """How clearly each region stands out as a rock (module docstring, step 5).
+
+    Its area, times its edge step, times its compactness, times the square of
+    the share of its edge that does not run along the frame's.
+    """
+    import cv2
+
+    rows, cols = signed.shape
+    labels = np.zeros((rows, cols), np.int32)
+    for i, region in enumerate(regions, start=1):
+        labels[region & (labels == 0)] = i
+    count = len(regions) + 1
+    band = np.ones((5, 5), np.uint8)
+    as_float = labels.astype(np.float32)
+    # Edge step: mean contrast just inside a region less just outside it.
+    # A rock's edge is a step as high as its contrast; a blob of texture
+    # fades out and barely steps at its edge. Two touching rocks each have an
+    # edge along the cut between them.
+    inner = (labels > 0) & (
+        (cv2.erode(as_float, band) != as_float) | (cv2.dilate(as_float, band) != as_float)
+    )
+    outer_labels = cv2.dilate(as_float, band).astype(np.int64)
+    outer = (labels == 0) & (outer_labels > 0)
+    clipped = np.minimum(signed, _Z_CAP)
+    inner_n = np.bincount(labels[inner], minlength=count)[1:]
+    inner_sum = np.bincount(labels[inner], weights=clipped[inner], minlength=count)[1:]
+    outer_n = np.bincount(outer_labels[outer], minlength=count)[1:]
+    outer_sum = np.bincount(outer_labels[outer], weights=clipped[outer], minlength=count)[1:]
+    step = inner_sum / np.maximum(inner_n, 1) - outer_sum / np.maximum(outer_n, 1)
+    # The share of a region's edge that is the frame's edge: a rock lies
+    # inside the frame, the ground (or a lighting residue) runs along it.
+    # The inner band is two pixels wide: half its count is the perimeter.
+    edge = np.zeros((rows, cols), bool)
+    edge[0], edge[-1], edge[:, 0], edge[:, -1] = True, True, True, True
+    perimeter = np.maximum(inner_n / 2.0, 1.0)
+    on_edge = np.bincount(labels[edge], minlength=count)[1:]
+    share = np.clip(on_edge / perimeter, 0.0, 1.0)
+    # Rocks are solid; the ground between several rocks, or a blob of
+    # texture, has a long ragged edge for its area (1 for a disc).
+    areas = np.bincount(labels.ravel(), minlength=count)[1:].astype(np.float64)
+    compactness = np.minimum(4.0 * np.pi * areas / perimeter**2, 1.0)
+    return areas * np.maximum(step, 0.0) * compactness * (1.0 - share) ** 2
+
+
+def _centre_weight(regions: list[NDArray[np.bool_]], shape: tuple[int, int]) -> NDArray[np.float64]:
+    """1 at the frame's centre, falling to ``1 - _CENTRE_PRIOR`` at its corners (squared distance)."""
+    weights = []
+    for region in regions:
+        ys, xs = np.nonzero(region)
+        dy = (ys.mean() + 0.5) / shape[0] * 2.0 - 1.0
+        dx = (xs.mean() + 0.5) / shape[1] * 2.0 - 1.0
+        weights.append(1.0 - _CENTRE_PRIOR * 0.5 * (dy * dy + dx * dx))
+    return np.array(weights)
+
+
+#: How much a rock at a corner of the frame loses against one at its centre.
+_CENTRE_PRIOR = 0.3
 
 
 #: With several rocks, the smallest score of a rock as a fraction of the main rock's.
@@ -850,6 +901,7 @@ def _outline_rock(
     work: NDArray[np.generic],
     dtype: np.dtype,
     region: NDArray[np.bool_],
+    territory: NDArray[np.bool_],
     up: tuple[float, float],
     detection: _Detection,
     config: SegmentConfig,
@@ -870,7 +922,7 @@ def _outline_rock(
     # or has grown past four times the detection, has flooded the ground.
     for _ in range(3):
         rock, reaches_edge = _threshold_rock(
-            work, dtype, estimate, origin, (to_row, to_col), up, detection, config
+            work, dtype, estimate, origin, territory, (to_row, to_col), up, detection, config
         )
         if rock is None or not reaches_edge:
             break
@@ -885,6 +937,7 @@ def _threshold_rock(
     dtype: np.dtype,
     estimate: NDArray[np.bool_],
     origin: tuple[int, int],
+    territory: NDArray[np.bool_],
     to_detect: tuple[NDArray[np.int64], NDArray[np.int64]],
     up: tuple[float, float],
     detection: _Detection,
@@ -942,7 +995,9 @@ def _threshold_rock(
         # Clipped ground (a glaring corner) stays ground: only what already rises is lifted.
         ceiling &= level > 0.25
         level[ceiling] = np.maximum(level[ceiling], 1.0)
-    count, labels = cv2.connectedComponents((level > 0.5).astype(np.uint8), connectivity=4)
+    # A touching neighbour beyond half-way is not this rock: keep to its territory.
+    own = territory[to_row[r0:r1, None], to_col[None, c0:c1]]
+    count, labels = cv2.connectedComponents(((level > 0.5) & own).astype(np.uint8), connectivity=4)
     overlap = np.bincount(labels[core], minlength=count)
     overlap[0] = 0
     if overlap.max() == 0:
