@@ -81,6 +81,7 @@ rock cut by the frame's border is outlined along the border.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from collections.abc import Iterator
 from dataclasses import dataclass
@@ -89,10 +90,16 @@ import numpy as np
 from numpy.typing import NDArray
 
 from rockscan._choices import POLARITIES
+from rockscan._seg_score import outline_evidence, outline_score
 from rockscan._seg_split import split_rocks, territories
 from rockscan.errors import NoRockFoundError, ParameterError
 
-__all__ = ["RockMask", "SegmentConfig", "Segmentation", "segment", "to_gray"]
+__all__ = ["CONFIDENT_SCORE", "RockMask", "SegmentConfig", "Segmentation", "segment", "to_gray"]
+
+#: Segmentation score below which an outline is not trusted: such a rock is
+#: never reported as interesting (calibrated on the segmentation benchmark's
+#: development part, see docs/segmentation.md).
+CONFIDENT_SCORE = 0.5
 
 
 @dataclass(frozen=True)
@@ -205,11 +212,22 @@ class RockMask:
         level is the outline, between pixels.
     origin_rowcol : (int, int)
         The window's top-left pixel in the working image.
+    score : float
+        Segmentation score in [0, 1]: how well the photo supports this
+        outline (a step from the rock's level to the ground's all round it,
+        rock inside, ground outside, off the frame, solid; see
+        ``rockscan._seg_score``). Low means a likely wrong outline; below
+        :data:`CONFIDENT_SCORE` the outline is not to be trusted.
+    evidence : tuple of float
+        The measurements the score is computed from (support, weak, outside,
+        noise, frame, solidity).
     """
 
     mask: NDArray[np.bool_]
     coverage: NDArray[np.float32]
     origin_rowcol: tuple[int, int]
+    score: float = 1.0
+    evidence: tuple[float, ...] = ()
 
     @property
     def area(self) -> int:
@@ -326,53 +344,122 @@ def segment(
     levels = _pyramid(color, config.detect_size)
     small, detect_covered = _at_scale(levels, detect_scale)
     small = _unit(small, arr.dtype)
-    best: _Detection | None = None
+    outline = _Outliner(
+        levels, arr.dtype, small.shape[:2], detect_covered, detect_scale, largest_scale, config
+    )
+    best: tuple[float, Segmentation] | None = None
     for channel in _channels(small):
-        best = _detect(channel.values(small), channel, config, all_rocks)
-        if best is not None:
-            break
+        detection = _detect(channel.values(small), channel, config, all_rocks)
+        if detection is None:
+            continue
+        if all_rocks:
+            found = outline(detection)
+            if found is not None:
+                return found
+            continue
+        for candidate in _candidates(detection):
+            found = outline(candidate)
+            if found is None:
+                continue
+            key = _choice_key(found, best[1] if best else None)
+            if best is None or key > best[0]:
+                best = (key, found)
+            # Fast path: an outline the photo clearly supports needs no rival.
+            if best[1].rocks[0].score >= FAST_SCORE:
+                return best[1]
     if best is None:
         raise NoRockFoundError("no rock found: nothing stands out from the ground")
+    return best[1]
 
-    # Outline on an image where the smallest rock found spans about
-    # outline_radius pixels: finer costs time and adds nothing to its shape.
-    smallest = min(int(r.sum()) for r in best.regions)
-    radius_photo = math.sqrt(smallest / math.pi) * detect_scale
-    work_scale = min(max(largest_scale, radius_photo / config.outline_radius), detect_scale)
-    work, covered = _at_scale(levels, work_scale)
-    scale_rowcol = (covered[0] / work.shape[0], covered[1] / work.shape[1])
-    work_size = (work.shape[1], work.shape[0])
 
-    # Working pixels per detection pixel, each image over the photo pixels it covers.
-    up = (
-        detect_covered[0] / small.shape[0] / scale_rowcol[0],
-        detect_covered[1] / small.shape[1] / scale_rowcol[1],
-    )
-    rocks = []
-    owners = territories(best.regions)
-    for index, region in enumerate(best.regions, start=1):
-        rock = _outline_rock(work, arr.dtype, region, owners == index, up, best, config)
-        if rock is not None:
-            rocks.append(rock)
-    if not rocks:
-        raise NoRockFoundError("no rock found: nothing stands out from the ground")
-    polarity = best.polarity
-    if best.channel.name != "luminance":
-        polarity = _luminance_polarity(work, arr.dtype, rocks[0])
-    rocks.sort(key=lambda r: -r.area)
-    labels = np.zeros((work_size[1], work_size[0]), np.int32)
-    for index, rock in enumerate(rocks, start=1):
-        r0, c0 = rock.origin_rowcol
-        h, w = rock.mask.shape
-        view = labels[r0 : r0 + h, c0 : c0 + w]
-        view[rock.mask & (view == 0)] = index
-    return Segmentation(
-        labels=labels,
-        rocks=tuple(rocks),
-        scale_rowcol=scale_rowcol,
-        polarity=polarity,
-        channel=best.channel.name,
-    )
+#: A main rock's segmentation score from which no other candidate is tried (the fast path).
+FAST_SCORE = 0.9
+
+
+def _candidates(detection: _Detection) -> Iterator[_Detection]:
+    """The detection's main rock, then its alternatives (whole regions, runners-up, the other polarity)."""
+    yield detection
+    seen = [detection.regions[0]]
+    for region, polarity in detection.alternatives:
+        if any(_overlap(region, other) > 0.9 for other in seen):
+            continue
+        seen.append(region)
+        yield dataclasses.replace(detection, regions=[region], polarity=polarity, others=[])
+
+
+def _overlap(a: NDArray[np.bool_], b: NDArray[np.bool_]) -> float:
+    """Intersection over union of two masks."""
+    union = int((a | b).sum())
+    return float((a & b).sum()) / union if union else 0.0
+
+
+def _choice_key(found: Segmentation, incumbent: Segmentation | None) -> float:
+    """Rank of a candidate main rock: its segmentation score, a little for its size.
+
+    A pebble or a highlight can be outlined as crisply as the rock it lies
+    on or by; of outlines about as well supported, the larger wins.
+    """
+    rock = found.rocks[0]
+    area = rock.area * found.scale_rowcol[0] * found.scale_rowcol[1]
+    return rock.score * area**_SIZE_WEIGHT
+
+
+#: Exponent of a candidate's area in its rank (a tenth of the area costs a quarter of the score).
+_SIZE_WEIGHT = 0.125
+
+
+@dataclass(frozen=True, eq=False)
+class _Outliner:
+    """Outlines a detection's rocks at working size (module docstring, step 6) and scores them."""
+
+    levels: list[NDArray[np.generic]]
+    dtype: np.dtype
+    small_shape: tuple[int, int]
+    detect_covered: tuple[float, float]
+    detect_scale: float
+    largest_scale: float
+    config: SegmentConfig
+
+    def __call__(self, detection: _Detection) -> Segmentation | None:
+        config = self.config
+        # Outline on an image where the smallest rock found spans about
+        # outline_radius pixels: finer costs time and adds nothing to its shape.
+        smallest = min(int(r.sum()) for r in detection.regions)
+        radius_photo = math.sqrt(smallest / math.pi) * self.detect_scale
+        work_scale = min(max(self.largest_scale, radius_photo / config.outline_radius), self.detect_scale)
+        work, covered = _at_scale(self.levels, work_scale)
+        scale_rowcol = (covered[0] / work.shape[0], covered[1] / work.shape[1])
+        # Working pixels per detection pixel, each image over the photo pixels it covers.
+        up = (
+            self.detect_covered[0] / self.small_shape[0] / scale_rowcol[0],
+            self.detect_covered[1] / self.small_shape[1] / scale_rowcol[1],
+        )
+        rocks = []
+        # Neighbours that are no rock of their own still bound a rock's territory.
+        owners = territories(detection.regions + detection.others)
+        for index, region in enumerate(detection.regions, start=1):
+            rock = _outline_rock(work, self.dtype, region, owners == index, up, detection, config)
+            if rock is not None:
+                rocks.append(rock)
+        if not rocks:
+            return None
+        polarity = detection.polarity
+        if detection.channel.name != "luminance":
+            polarity = _luminance_polarity(work, self.dtype, rocks[0])
+        rocks.sort(key=lambda r: -r.area)
+        labels = np.zeros(work.shape[:2], np.int32)
+        for index, rock in enumerate(rocks, start=1):
+            r0, c0 = rock.origin_rowcol
+            h, w = rock.mask.shape
+            view = labels[r0 : r0 + h, c0 : c0 + w]
+            view[rock.mask & (view == 0)] = index
+        return Segmentation(
+            labels=labels,
+            rocks=tuple(rocks),
+            scale_rowcol=scale_rowcol,
+            polarity=polarity,
+            channel=detection.channel.name,
+        )
 
 
 # ---------------------------------------------------------------- input and channels
@@ -511,6 +598,10 @@ class _Detection:
     lighting: NDArray[np.float32]
     channel: _Channel
     outliers: NDArray[np.bool_]
+    #: Every other rock-like region of the rocks' polarity (neighbours in a crop).
+    others: list[NDArray[np.bool_]]
+    #: Regions that might be the main rock instead, with their polarity, best first.
+    alternatives: list[tuple[NDArray[np.bool_], str]]
 
 
 def _poly_terms(rows_norm: NDArray[np.float64], cols_norm: NDArray[np.float64], degree: int) -> list:
@@ -682,8 +773,8 @@ def _detect(
             break
         stat_ground = ~rocks
         fit_ground = ~(rocks | far) if (~(rocks | far)).mean() >= 0.1 else stat_ground
-    score, regions, polarity = found
-    return _Detection(score, regions, polarity, lighting, channel, outliers)
+    score, regions, polarity, others, alternatives = found
+    return _Detection(score, regions, polarity, lighting, channel, outliers, others, alternatives)
 
 
 def _luminance_polarity(work: NDArray[np.generic], dtype: np.dtype, rock: RockMask) -> str:
@@ -715,12 +806,14 @@ _Z_CAP = 30.0
 
 def _best_regions(
     z: NDArray[np.float32], config: SegmentConfig, min_area: float, all_rocks: bool, *, split: bool = True
-) -> tuple[float, list[NDArray[np.bool_]], str] | None:
-    """Score of the main rock, the rock regions and their polarity (module docstring, steps 4-5)."""
+) -> tuple[float, list[NDArray[np.bool_]], str, list[NDArray[np.bool_]], list] | None:
+    """Score of the main rock, the rock regions, their polarity and the other candidate regions
+    (module docstring, steps 4-5), and the alternatives for the main rock, best first."""
     import cv2
 
     rows, cols = z.shape
     best = None
+    alternatives: list[tuple[float, NDArray[np.bool_], str]] = []
     polarities = ("light", "dark") if config.polarity == "auto" else (config.polarity,)
     for polarity in polarities:
         signed = z if polarity == "light" else -z
@@ -747,11 +840,16 @@ def _best_regions(
         if not regions:
             continue
         scores = _region_scores(signed, regions)
+        candidates = regions
         if not all_rocks:
             # A crop is centred on its rock: of two rocks alike, the nearer the centre.
             scores = scores * _centre_weight(regions, (rows, cols))
         main = int(np.argmax(scores))
         total = float(scores[main])
+        if not all_rocks:
+            # Runners-up for the main rock, which the outline's own evidence may prefer.
+            ranked = [int(i) for i in np.argsort(-scores, kind="stable")[:_ALTERNATIVES] if scores[i] > 0]
+            alternatives.extend((float(scores[i]), regions[i], polarity) for i in ranked)
         if total <= 0 or (best is not None and total <= best[0]):
             continue
         areas_r = np.array([float(r.sum()) for r in regions])
@@ -772,8 +870,21 @@ def _best_regions(
         else:
             parts = _split(regions[main], signed, min_area) if split else []
             regions = [max(parts, key=lambda r: int(r.sum()))] if parts else [regions[main]]
-        best = (total, regions, polarity)
-    return best
+        # In a crop, the neighbours that would be rocks with --all.
+        others = [
+            candidates[i]
+            for i in range(len(candidates))
+            if i != main
+            and not all_rocks
+            and scores[i] >= _RELATIVE_SCORE * total
+            and candidates[i].sum() >= config.min_relative_area * candidates[main].sum()
+        ]
+        best = (total, regions, polarity, others)
+    if best is None:
+        return None
+    alternatives.sort(key=lambda a: -a[0])
+    # The chosen region first among the alternatives: whole, before any cut.
+    return (*best, [(region, polarity) for _, region, polarity in alternatives])
 
 
 def _region_scores(signed: NDArray[np.float32], regions: list[NDArray[np.bool_]]) -> NDArray[np.float64]:
@@ -831,6 +942,9 @@ def _centre_weight(regions: list[NDArray[np.bool_]], shape: tuple[int, int]) -> 
         weights.append(1.0 - _CENTRE_PRIOR * 0.5 * (dy * dy + dx * dx))
     return np.array(weights)
 
+
+#: Regions of each polarity that compete for the main rock.
+_ALTERNATIVES = 3
 
 #: How much a rock at a corner of the frame loses against one at its centre.
 _CENTRE_PRIOR = 0.3
@@ -928,8 +1042,53 @@ def _outline_rock(
             break
         estimate, origin = rock.mask, rock.origin_rowcol
     if rock is None or reaches_edge or rock.area > 4.0 * float(detected.sum()):
-        return _fallback(detected, (r0, c0))
-    return rock
+        rock = _fallback(detected, (r0, c0))
+    if rock is None:
+        return None
+    return _scored(work, dtype, rock, (to_row, to_col), up, detection, config)
+
+
+def _scored(
+    work: NDArray[np.generic],
+    dtype: np.dtype,
+    rock: RockMask,
+    to_detect: tuple[NDArray[np.int64], NDArray[np.int64]],
+    up: tuple[float, float],
+    detection: _Detection,
+    config: SegmentConfig,
+) -> RockMask:
+    """The rock with its segmentation score (rockscan._seg_score).
+
+    The evidence is read on the flattened channel the rock was found in,
+    as a level from the ground's (0, where the lighting fit puts it) to the
+    rock's (1, the median inside): so a highlight on a rock, or a lit side
+    without its shaded one, shows rock rather than ground just outside.
+    """
+    import cv2
+
+    rows, cols = work.shape[:2]
+    o0, o1 = rock.origin_rowcol
+    h, w = rock.mask.shape
+    radius = math.sqrt(max(rock.area, 1) / math.pi)
+    pad = round(max(6.0, 0.4 * radius))
+    r0, r1 = max(0, o0 - pad), min(rows, o0 + h + pad)
+    c0, c1 = max(0, o1 - pad), min(cols, o1 + w + pad)
+    mask = np.zeros((r1 - r0, c1 - c0), bool)
+    mask[o0 - r0 : o0 - r0 + h, o1 - c0 : o1 - c0 + w] = rock.mask
+    window = _unit(np.ascontiguousarray(work[r0:r1, c0:c1]), dtype)
+    values = _smooth(detection.channel.values(window), 1, config.smooth_sigma)
+    lighting = _window_of(detection.lighting, up, (r0, r1, c0, c1))
+    flat = _flatten(values, lighting, detection.channel.multiplicative)
+    inside = cv2.distanceTransform(mask.astype(np.uint8), cv2.DIST_L2, 3) > max(1.0, 0.15 * radius)
+    core = flat[inside] if inside.sum() >= 4 else flat[mask]
+    level_rock = float(np.median(core))
+    if not math.isfinite(level_rock) or abs(level_rock) < 1e-6:
+        return dataclasses.replace(rock, score=0.0, evidence=())
+    sides = (r0 == 0, r1 == rows, c0 == 0, c1 == cols)
+    evidence = outline_evidence((flat / np.float32(level_rock)).astype(np.float32), mask, sides)
+    return dataclasses.replace(
+        rock, score=outline_score(evidence), evidence=tuple(float(v) for v in evidence.as_array())
+    )
 
 
 def _threshold_rock(
