@@ -91,7 +91,7 @@ from numpy.typing import NDArray
 
 from rockscan._choices import POLARITIES
 from rockscan._seg_score import outline_evidence, outline_score
-from rockscan._seg_split import split_rocks, territories
+from rockscan._seg_split import split_necks, split_rocks, territories
 from rockscan.errors import NoRockFoundError, ParameterError
 
 __all__ = ["CONFIDENT_SCORE", "RockMask", "SegmentConfig", "Segmentation", "segment", "to_gray"]
@@ -369,6 +369,10 @@ def segment(
                 return best[1]
     if best is None:
         raise NoRockFoundError("no rock found: nothing stands out from the ground")
+    for found in outline.refined(best[1]):
+        key = _choice_key(found, best[1])
+        if key > best[0]:
+            best = (key, found)
     return best[1]
 
 
@@ -419,6 +423,8 @@ class _Outliner:
     detect_scale: float
     largest_scale: float
     config: SegmentConfig
+    #: The working image, its scale and the detection of each segmentation made.
+    works: dict = dataclasses.field(default_factory=dict)
 
     def __call__(self, detection: _Detection) -> Segmentation | None:
         config = self.config
@@ -446,20 +452,126 @@ class _Outliner:
         polarity = detection.polarity
         if detection.channel.name != "luminance":
             polarity = _luminance_polarity(work, self.dtype, rocks[0])
-        rocks.sort(key=lambda r: -r.area)
-        labels = np.zeros(work.shape[:2], np.int32)
-        for index, rock in enumerate(rocks, start=1):
-            r0, c0 = rock.origin_rowcol
-            h, w = rock.mask.shape
-            view = labels[r0 : r0 + h, c0 : c0 + w]
-            view[rock.mask & (view == 0)] = index
-        return Segmentation(
-            labels=labels,
-            rocks=tuple(rocks),
-            scale_rowcol=scale_rowcol,
-            polarity=polarity,
-            channel=detection.channel.name,
+        found = _assemble(rocks, work.shape[:2], scale_rowcol, polarity, detection.channel.name)
+        self.works[id(found)] = (work, up, detection)
+        return found
+
+    def refined(self, found: Segmentation) -> Iterator[Segmentation]:
+        """Other outlines of a found main rock: GrabCut from it, and the Otsu part under the centre."""
+        work, up, detection = self.works[id(found)]
+        rock = found.rocks[0]
+        to_row = np.minimum(
+            ((np.arange(work.shape[0]) + 0.5) / up[0]).astype(np.int64), self.small_shape[0] - 1
         )
+        to_col = np.minimum(
+            ((np.arange(work.shape[1]) + 0.5) / up[1]).astype(np.int64), self.small_shape[1] - 1
+        )
+        for mask in (_grabcut(work, self.dtype, rock), _centre_part(work, self.dtype)):
+            if mask is None or not mask.any():
+                continue
+            candidate = RockMask(mask=mask, coverage=mask.astype(np.float32), origin_rowcol=(0, 0))
+            candidate = _cropped(
+                _scored(work, self.dtype, candidate, (to_row, to_col), up, detection, self.config)
+            )
+            yield _assemble([candidate], work.shape[:2], found.scale_rowcol, found.polarity, found.channel)
+
+
+def _assemble(
+    rocks: list[RockMask],
+    shape: tuple[int, int],
+    scale_rowcol: tuple[float, float],
+    polarity: str,
+    channel: str,
+) -> Segmentation:
+    """A segmentation of outlined rocks, by decreasing area."""
+    rocks = sorted(rocks, key=lambda r: -r.area)
+    labels = np.zeros(shape, np.int32)
+    for index, rock in enumerate(rocks, start=1):
+        r0, c0 = rock.origin_rowcol
+        h, w = rock.mask.shape
+        view = labels[r0 : r0 + h, c0 : c0 + w]
+        view[rock.mask & (view == 0)] = index
+    return Segmentation(
+        labels=labels, rocks=tuple(rocks), scale_rowcol=scale_rowcol, polarity=polarity, channel=channel
+    )
+
+
+def _cropped(rock: RockMask) -> RockMask:
+    """The rock in the smallest window that holds it, with a pixel to spare."""
+    ys, xs = np.nonzero(rock.mask)
+    r0, r1 = max(0, ys.min() - 1), min(rock.mask.shape[0], ys.max() + 2)
+    c0, c1 = max(0, xs.min() - 1), min(rock.mask.shape[1], xs.max() + 2)
+    o0, o1 = rock.origin_rowcol
+    return dataclasses.replace(
+        rock,
+        mask=rock.mask[r0:r1, c0:c1],
+        coverage=rock.coverage[r0:r1, c0:c1],
+        origin_rowcol=(o0 + int(r0), o1 + int(c0)),
+    )
+
+
+def _grabcut(work: NDArray[np.generic], dtype: np.dtype, rock: RockMask) -> NDArray[np.bool_] | None:
+    """OpenCV's GrabCut (colour models of rock and ground, cut along edges) started from an outline.
+
+    Pixels well inside the outline are rock, well outside ground, the band
+    between undecided. Returns the rock over the whole working image.
+    """
+    import cv2
+
+    rows, cols = work.shape[:2]
+    r0, c0 = rock.origin_rowcol
+    h, w = rock.mask.shape
+    radius = math.sqrt(max(rock.area, 1) / math.pi)
+    pad = round(max(8.0, 0.6 * radius))
+    R0, R1, C0, C1 = max(0, r0 - pad), min(rows, r0 + h + pad), max(0, c0 - pad), min(cols, c0 + w + pad)
+    m = np.zeros((R1 - R0, C1 - C0), np.uint8)
+    m[r0 - R0 : r0 - R0 + h, c0 - C0 : c0 - C0 + w] = rock.mask
+    disk = _disk(max(2, round(0.25 * radius)))
+    trimap = np.full(m.shape, cv2.GC_BGD, np.uint8)
+    trimap[cv2.dilate(m, disk) > 0] = cv2.GC_PR_BGD
+    trimap[m > 0] = cv2.GC_PR_FGD
+    sure = cv2.erode(m, disk) > 0
+    if not sure.any():
+        return None
+    trimap[sure] = cv2.GC_FGD
+    window = _unit(np.ascontiguousarray(work[R0:R1, C0:C1]), dtype)
+    if window.ndim == 2:
+        window = np.repeat(window[..., None], 3, axis=2)
+    image = np.ascontiguousarray((window * 255).astype(np.uint8))
+    bgd, fgd = np.zeros((1, 65), np.float64), np.zeros((1, 65), np.float64)
+    try:
+        cv2.grabCut(image, trimap, None, bgd, fgd, _GRABCUT_ITERATIONS, cv2.GC_INIT_WITH_MASK)
+    except cv2.error:
+        return None
+    fg = ((trimap == cv2.GC_FGD) | (trimap == cv2.GC_PR_FGD)).astype(np.uint8)
+    count, labels = cv2.connectedComponents(fg, connectivity=4)
+    overlap = np.bincount(labels[sure], minlength=count)
+    overlap[0] = 0
+    out = np.zeros((rows, cols), bool)
+    out[R0:R1, C0:C1] = _fill_holes(labels == int(np.argmax(overlap)))
+    return out
+
+
+#: GrabCut's rounds of colour models and cut.
+_GRABCUT_ITERATIONS = 3
+
+
+def _centre_part(work: NDArray[np.generic], dtype: np.dtype) -> NDArray[np.bool_] | None:
+    """The Otsu class under the frame's centre, holes filled, cut at necks from touching neighbours."""
+    import cv2
+
+    gray = to_gray(work) if work.ndim == 3 else _unit(work, dtype)
+    gray8 = cv2.GaussianBlur((gray * 255).astype(np.uint8), (5, 5), 0)
+    _, binary = cv2.threshold(gray8, 0, 1, cv2.THRESH_BINARY + cv2.THRESH_OTSU)
+    rows, cols = binary.shape
+    if not binary[rows // 2, cols // 2]:
+        binary = 1 - binary
+    _, labels = cv2.connectedComponents(binary, connectivity=4)
+    region = _fill_holes(labels == labels[rows // 2, cols // 2])
+    for part in split_necks(region, 0.01 * rows * cols):
+        if part[rows // 2, cols // 2]:
+            return part
+    return region
 
 
 # ---------------------------------------------------------------- input and channels
@@ -849,6 +961,8 @@ def _best_regions(
         if not all_rocks:
             # Runners-up for the main rock, which the outline's own evidence may prefer.
             ranked = [int(i) for i in np.argsort(-scores, kind="stable")[:_ALTERNATIVES] if scores[i] > 0]
+            # A crop is centred on its rock: the region under the centre competes too.
+            ranked += [i for i, r in enumerate(regions) if r[rows // 2, cols // 2] and i not in ranked]
             alternatives.extend((float(scores[i]), regions[i], polarity) for i in ranked)
         if total <= 0 or (best is not None and total <= best[0]):
             continue
@@ -1060,9 +1174,8 @@ def _scored(
     """The rock with its segmentation score (rockscan._seg_score).
 
     The evidence is read on the flattened channel the rock was found in,
-    as a level from the ground's (0, where the lighting fit puts it) to the
-    rock's (1, the median inside): so a highlight on a rock, or a lit side
-    without its shaded one, shows rock rather than ground just outside.
+    as a level from the ground's (0, the median of a ring around the
+    outline) to the rock's (1, the median inside).
     """
     import cv2
 
@@ -1079,13 +1192,18 @@ def _scored(
     values = _smooth(detection.channel.values(window), 1, config.smooth_sigma)
     lighting = _window_of(detection.lighting, up, (r0, r1, c0, c1))
     flat = _flatten(values, lighting, detection.channel.multiplicative)
-    inside = cv2.distanceTransform(mask.astype(np.uint8), cv2.DIST_L2, 3) > max(1.0, 0.15 * radius)
+    mask8 = mask.astype(np.uint8)
+    inside = cv2.distanceTransform(mask8, cv2.DIST_L2, 3) > max(1.0, 0.15 * radius)
     core = flat[inside] if inside.sum() >= 4 else flat[mask]
-    level_rock = float(np.median(core))
-    if not math.isfinite(level_rock) or abs(level_rock) < 1e-6:
+    outside = cv2.distanceTransform(1 - mask8, cv2.DIST_L2, 3)
+    ring = (outside > max(3.0, 0.12 * radius)) & (outside <= max(6.0, 0.35 * radius))
+    ground = float(np.median(flat[ring])) if ring.sum() >= 8 else 0.0
+    step = float(np.median(core)) - ground
+    if not math.isfinite(step) or abs(step) < 1e-6:
         return dataclasses.replace(rock, score=0.0, evidence=())
     sides = (r0 == 0, r1 == rows, c0 == 0, c1 == cols)
-    evidence = outline_evidence((flat / np.float32(level_rock)).astype(np.float32), mask, sides)
+    level = ((flat - np.float32(ground)) / np.float32(step)).astype(np.float32)
+    evidence = outline_evidence(level, mask, sides)
     return dataclasses.replace(
         rock, score=outline_score(evidence), evidence=tuple(float(v) for v in evidence.as_array())
     )
