@@ -33,6 +33,8 @@ __all__ = ["split_necks", "split_rocks", "territories"]
 #: A pass between two humps of contrast at least this share of the lower top
 #: joins them (texture on one rock); below it they are two rocks.
 PASS_SHARE = 0.5
+#: Solidity from which a region is taken for one rock without looking further.
+CONVEX = 0.96
 #: Smoothing of the contrast before it is split, as a share of the largest
 #: inscribed radius in the region.
 TEXTURE_SHARE = 0.1
@@ -79,6 +81,9 @@ def split_rocks(
     r0, c0 = max(0, r0 - 1), max(0, c0 - 1)
     r1, c1 = min(region.shape[0], r1 + 1), min(region.shape[1], c1 + 1)
     sub = region[r0:r1, c0:c1]
+    if _solidity(sub) >= CONVEX:
+        # Touching rocks leave notches where they meet: a convex region is one rock.
+        return [region]
     # Texture on a rock (a coin's relief) dents its contrast as deeply as the
     # gap between two rocks, but over a shorter length: smoothing by a tenth
     # of the largest rock's inscribed radius fills the one and keeps the other.
@@ -99,9 +104,17 @@ def split_rocks(
             continue
         # Necks are judged half-way up the cell's contrast: at the region's own
         # floor the blur between touching rocks fills them in.
-        level = float(np.percentile(values[cell], 90))
-        core = _filled(cell & (values > floor + 0.5 * (level - floor)), min_area)
-        blobs = split_necks(core, 0.5 * min_area)
+        # Half-way up to the brighter rocks' level, and to the fainter ones'
+        # (a faint rock against a clear one shows its necks only there).
+        blobs = max(
+            (
+                split_necks(
+                    _filled(cell & (values > floor + 0.5 * (level - floor)), min_area), 0.5 * min_area
+                )
+                for level in np.percentile(values[cell], [90, 30])
+            ),
+            key=len,
+        )
         if len(blobs) == 1:
             parts.append(cell)
         else:
@@ -182,6 +195,15 @@ def split_necks(cell: NDArray[np.bool_], min_area: float) -> list[NDArray[np.boo
     parts = [labels == i for i in range(1, int(labels.max()) + 1)]
     parts = [p for p in parts if p.sum() >= min_area]
     return parts if len(parts) > 1 else [cell]
+
+
+def _solidity(mask: NDArray[np.bool_]) -> float:
+    """Area over the area of the convex hull (pixel centres, so a little over 1 for small masks)."""
+    import cv2
+
+    contours, _ = cv2.findContours(mask.astype(np.uint8), cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_SIMPLE)
+    hull = cv2.contourArea(cv2.convexHull(np.concatenate(contours)))
+    return float(mask.sum()) / max(hull, 1.0)
 
 
 def _filled(mask: NDArray[np.bool_], largest: float) -> NDArray[np.bool_]:

@@ -6,6 +6,7 @@ prints: the command line formats what they return.
 
 from __future__ import annotations
 
+import dataclasses
 import os
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING
@@ -17,7 +18,7 @@ from rockscan.errors import RockscanError
 from rockscan.match import Match, MatchConfig, match_radii
 from rockscan.outline import Outline, trace_outline
 from rockscan.polar import contour_radii
-from rockscan.segment import Segmentation, SegmentConfig, segment
+from rockscan.segment import CONFIDENT_SCORE, Segmentation, SegmentConfig, segment
 
 if TYPE_CHECKING:
     from rockscan.information import FaceConfig
@@ -56,12 +57,17 @@ class RockResult:
     radii : (n_angles,) ndarray of float
         Radii about the centroid, in photo pixels.
     match : Match
+    segmentation_score : float
+        How well the photo supports the outline, in [0, 1] (see
+        :attr:`rockscan.segment.RockMask.score`); below
+        :data:`rockscan.segment.CONFIDENT_SCORE` the rock is never interesting.
     """
 
     index: int
     outline: Outline
     radii: NDArray[np.float64]
     match: Match
+    segmentation_score: float = 1.0
 
     @property
     def centroid_xy(self) -> tuple[float, float]:
@@ -171,13 +177,17 @@ def classify_image(
         If no rock stands out from the ground.
     """
     config = config or ClassifyConfig()
-    _, rocks = measure_rocks(
+    seg, rocks = measure_rocks(
         pixels, library.face_config.n_angles, config.segment, all_rocks=all_rocks, scale=scale
     )
-    return [
-        RockResult(index=i, outline=outline, radii=radii, match=match_radii(radii, library, config.match))
-        for i, (outline, radii) in enumerate(rocks)
-    ]
+    results = []
+    for i, ((outline, radii), rock) in enumerate(zip(rocks, seg.rocks, strict=True)):
+        match = match_radii(radii, library, config.match)
+        if rock.score < CONFIDENT_SCORE and match.interesting:
+            # A shape read from an outline the photo does not support is no finding.
+            match = dataclasses.replace(match, interesting=False, match=None)
+        results.append(RockResult(i, outline, radii, match, segmentation_score=rock.score))
+    return results
 
 
 def classify_path(
