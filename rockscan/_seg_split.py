@@ -35,6 +35,8 @@ __all__ = ["split_necks", "split_rocks", "territories"]
 PASS_SHARE = 0.5
 #: Solidity from which a region is taken for one rock without looking further.
 CONVEX = 0.96
+#: Solidity from which a cell the contrast left whole is one rock (shape cue skipped).
+CONVEX_CELL = 0.95
 #: Smoothing of the contrast before it is split, as a share of the largest
 #: inscribed radius in the region.
 TEXTURE_SHARE = 0.1
@@ -101,6 +103,10 @@ def split_rocks(
     for label in range(1, int(cells.max()) + 1):
         cell = cells == label
         if cell.sum() < min_area:
+            continue
+        if _solidity(cell) >= CONVEX_CELL:
+            # No notch where a neighbour would touch: one rock, however its light falls.
+            parts.append(cell)
             continue
         # Necks are judged half-way up the cell's contrast: at the region's own
         # floor the blur between touching rocks fills them in.
