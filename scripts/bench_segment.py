@@ -1,0 +1,686 @@
+"""Segmentation benchmark: rockscan and what a user would try instead, against exact truth.
+
+Photos come from :mod:`scenes` (a generator independent of
+``rockscan.render``, see its docstring for the conditions and the split) and
+from real photos shipped with scikit-image (every coin of ``coins()``, and
+every single-coin crop at native resolution with a margin of a third of its
+diameter; the reference outlines are ``tests/data/coins_reference.png``, see
+docs/segmentation.md).
+
+Parts: ``dev`` (seeds 0-9999, textures from the top half of each source
+photo) is for tuning; ``heldout`` (seeds 100000+, textures from the bottom
+half) is for reporting only; ``real`` is the real photos.
+
+Columns, for photos of one rock and crops (the truth is one rock): share of
+photos whose outline has IoU >= 0.9 with the truth, median IoU, median error
+of the centroid in equivalent radii ``sqrt(area / pi)`` of the truth, and
+"no rock" (the method found nothing). For ``--all`` scenes: share of scenes
+whose count is exact, share of true rocks matched one to one (IoU >= 0.5;
+with that threshold a match is unique), merges (found regions holding most of
+two or more true rocks) and splits (true rocks holding most of two or more
+found regions).
+
+Rows:
+
+* ``rockscan``: ``rockscan.segment.segment``; the main rock (or every rock
+  with ``all_rocks``) outlined as the pipeline does (``trace_outline`` of the
+  rock's coverage, mapped to photo pixels) and filled at photo resolution;
+* ``otsu``: gray, 5x5 Gaussian blur, Otsu's threshold (the ground is the
+  class covering most of the frame's border), holes filled, connected
+  components; the largest is the rock (the one nearest the centre for crops);
+* ``watershed``: the same mask split by scikit-image's distance-transform
+  watershed (markers: ``peak_local_max`` of the distance, ``min_distance`` a
+  40th of the shorter side, at least 5 px);
+* ``grabcut``: OpenCV's GrabCut from a box 8% inside the frame, 5 iterations,
+  on a copy of at most 256 px (GrabCut takes seconds at full size), the mask
+  scaled back; components as for ``otsu``.
+
+Other segmenters are judged with :func:`evaluate`.
+
+Run ``python scripts/bench_segment.py --help`` for options.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import sys
+import time
+from collections.abc import Callable, Sequence
+from dataclasses import asdict, dataclass
+from pathlib import Path
+
+import numpy as np
+from numpy.typing import NDArray
+from scipy import ndimage as ndi
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+import scenes
+
+from rockscan.errors import NoRockFoundError, RockscanError
+
+ROOT = Path(__file__).resolve().parents[1]
+COINS_REFERENCE = ROOT / "tests" / "data" / "coins_reference.png"
+#: Real-photo conditions (part ``real``).
+REAL_CONDITIONS = ("coins-all", "coins-crops")
+REAL_KINDS = {"coins-all": "all", "coins-crops": "crop"}
+METHODS = ("rockscan", "otsu", "watershed", "grabcut")
+PARTS = ("dev", "heldout", "real")
+#: IoU a rock must reach to count as outlined; IoU of a one-to-one match.
+IOU_GOOD = 0.9
+IOU_MATCH = 0.5
+
+#: ``method(pixels, kind) -> labels`` at photo resolution (1 = the main rock).
+Method = Callable[[NDArray, str], NDArray[np.int32]]
+
+
+# --------------------------------------------------------------------------- metrics
+
+
+def iou(a: NDArray[np.bool_], b: NDArray[np.bool_]) -> float:
+    """Intersection over union of two masks (1.0 when both are empty)."""
+    union = int(np.count_nonzero(a | b))
+    return 1.0 if union == 0 else int(np.count_nonzero(a & b)) / union
+
+
+@dataclass(frozen=True)
+class RockScore:
+    """How one outline compares with the true rock."""
+
+    iou: float
+    centroid_error: float  # in equivalent radii of the truth; inf when nothing was found
+    no_rock: bool
+
+
+def score_rock(found: NDArray[np.bool_], truth: NDArray[np.bool_]) -> RockScore:
+    """IoU and centroid error of a found mask against the true one."""
+    if not found.any():
+        return RockScore(0.0, float("inf"), True)
+    radius = float(np.sqrt(truth.sum() / np.pi))
+    c_found = np.array(ndi.center_of_mass(found))
+    c_truth = np.array(ndi.center_of_mass(truth))
+    return RockScore(iou(found, truth), float(np.hypot(*(c_found - c_truth)) / radius), False)
+
+
+@dataclass(frozen=True)
+class CrowdScore:
+    """How the rocks found in a scene compare with the true ones."""
+
+    n_true: int
+    n_found: int
+    matched: int  # one-to-one matches at IoU >= 0.5
+    merges: int  # found regions holding most of >= 2 true rocks
+    splits: int  # true rocks holding most of >= 2 found regions
+
+
+def overlap_table(found: NDArray[np.integer], truth: NDArray[np.integer]) -> NDArray[np.int64]:
+    """Pixel counts ``[i, j]`` of found label ``i`` and true label ``j`` (0 = ground)."""
+    n_found, n_true = int(found.max()) + 1, int(truth.max()) + 1
+    pairs = found.astype(np.int64).ravel() * n_true + truth.astype(np.int64).ravel()
+    return np.bincount(pairs, minlength=n_found * n_true).reshape(n_found, n_true)
+
+
+def score_crowd(found: NDArray[np.integer], truth: NDArray[np.integer]) -> CrowdScore:
+    """Count, one-to-one matches, merges and splits of a labelled scene.
+
+    Labels need not be dense; a label absent from an image is no region.
+    """
+    from scipy.optimize import linear_sum_assignment
+
+    found = _dense(found)
+    truth = _dense(truth)
+    table = overlap_table(found, truth)
+    inter = table[1:, 1:].astype(np.float64)
+    area_found = table[1:, :].sum(axis=1).astype(np.float64)
+    area_true = table[:, 1:].sum(axis=0).astype(np.float64)
+    n_found, n_true = inter.shape
+    matched = 0
+    if n_found and n_true:
+        union = area_found[:, None] + area_true[None, :] - inter
+        ious = inter / np.maximum(union, 1.0)
+        rows, cols = linear_sum_assignment(-ious)
+        matched = int(np.count_nonzero(ious[rows, cols] >= IOU_MATCH))
+    # Most of a true rock inside one found region; most of a found region inside one true rock.
+    holds_true = inter >= 0.5 * area_true[None, :]
+    holds_found = inter >= 0.5 * area_found[:, None]
+    merges = int(np.count_nonzero(holds_true.sum(axis=1) >= 2)) if n_true else 0
+    splits = int(np.count_nonzero(holds_found.sum(axis=0) >= 2)) if n_found else 0
+    return CrowdScore(n_true, n_found, matched, merges, splits)
+
+
+def _dense(labels: NDArray[np.integer]) -> NDArray[np.int32]:
+    """Labels renumbered 1..n in order, ground 0."""
+    values = np.unique(labels)
+    values = values[values > 0]
+    remap = np.zeros(int(labels.max()) + 1 if labels.size else 1, np.int32)
+    remap[values] = np.arange(1, len(values) + 1)
+    return remap[labels]
+
+
+# --------------------------------------------------------------------------- methods
+
+
+def segmentation_labels(seg, shape: tuple[int, int]) -> NDArray[np.int32]:
+    """A ``rockscan.segment.Segmentation`` as labels at photo resolution.
+
+    Each rock is outlined as the pipeline outlines it (the 0.5 level of its
+    coverage, in photo pixels) and filled; rock 1 is the main rock.
+    """
+    from skimage.draw import polygon
+
+    from rockscan.outline import trace_outline
+
+    labels = np.zeros(shape, np.int32)
+    for i, rock in enumerate(seg.rocks, start=1):
+        try:
+            outline = trace_outline(rock.coverage, scale=seg.scale_rowcol, origin_rowcol=rock.origin_rowcol)
+        except NoRockFoundError:
+            continue
+        rr, cc = polygon(outline.contour_rowcol[:, 0], outline.contour_rowcol[:, 1], shape)
+        free = labels[rr, cc] == 0
+        labels[rr[free], cc[free]] = i
+    return labels
+
+
+def as_method(segment_fn: Callable) -> Method:
+    """A segmenter ``segment_fn(pixels, all_rocks=bool)`` as a benchmark method.
+
+    ``segment_fn`` returns a ``rockscan.segment.Segmentation`` (anything with
+    ``rocks`` and ``scale_rowcol``) or a label image at photo resolution
+    (1 = the main rock); it raises ``NoRockFoundError`` or returns no label
+    when it finds nothing.
+    """
+
+    def method(pixels: NDArray, kind: str) -> NDArray[np.int32]:
+        try:
+            out = segment_fn(pixels, all_rocks=kind == "all")
+        except NoRockFoundError:
+            return np.zeros(pixels.shape[:2], np.int32)
+        if hasattr(out, "rocks") and hasattr(out, "scale_rowcol"):
+            return segmentation_labels(out, pixels.shape[:2])
+        labels = np.asarray(out)
+        if labels.shape != pixels.shape[:2]:
+            raise ValueError(f"labels of shape {labels.shape} for a photo of shape {pixels.shape[:2]}")
+        return labels.astype(np.int32)
+
+    return method
+
+
+def _rockscan(pixels: NDArray, kind: str) -> NDArray[np.int32]:
+    from rockscan.segment import segment
+
+    return as_method(segment)(pixels, kind)
+
+
+def _gray(pixels: NDArray) -> NDArray[np.uint8]:
+    import cv2
+
+    return pixels if pixels.ndim == 2 else cv2.cvtColor(np.ascontiguousarray(pixels), cv2.COLOR_RGB2GRAY)
+
+
+def _otsu_mask(pixels: NDArray) -> NDArray[np.bool_]:
+    """Otsu's threshold of the blurred gray photo; the class on most of the border is ground."""
+    import cv2
+
+    gray = cv2.GaussianBlur(_gray(pixels), (5, 5), 0)
+    _, binary = cv2.threshold(gray, 0, 255, cv2.THRESH_BINARY + cv2.THRESH_OTSU)
+    mask = binary > 0
+    border = np.concatenate([mask[0], mask[-1], mask[:, 0], mask[:, -1]])
+    if border.mean() > 0.5:
+        mask = ~mask
+    return mask
+
+
+def _min_area(shape: tuple[int, int]) -> int:
+    # What a user drops as specks: 0.1% of the frame.
+    return max(16, int(0.001 * shape[0] * shape[1]))
+
+
+def _components(mask: NDArray[np.bool_]) -> NDArray[np.int32]:
+    """Connected components with holes filled, specks dropped, by decreasing area."""
+    labels, n = ndi.label(mask)
+    if n == 0:
+        return labels.astype(np.int32)
+    out = np.zeros(mask.shape, np.int32)
+    areas = np.bincount(labels.ravel())[1:]
+    objects = ndi.find_objects(labels)
+    order = np.argsort(-areas, kind="stable")
+    k = 0
+    for j in order:
+        if areas[j] < _min_area(mask.shape):
+            break
+        sl = objects[j]
+        filled = ndi.binary_fill_holes(labels[sl] == j + 1)
+        k += 1
+        out[sl][filled & (out[sl] == 0)] = k
+    return out
+
+
+def _choose(labels: NDArray[np.int32], kind: str) -> NDArray[np.int32]:
+    """Every region (``all``), the largest (``one``) or the one nearest the centre (``crop``)."""
+    if kind == "all" or labels.max() == 0:
+        return labels
+    if kind == "one":
+        areas = np.bincount(labels.ravel())[1:]
+        keep = int(np.argmax(areas)) + 1
+    else:
+        centre = (np.array(labels.shape) - 1) / 2.0
+        index = np.arange(1, labels.max() + 1)
+        present = np.bincount(labels.ravel(), minlength=labels.max() + 1)[1:] > 0
+        # Distance from the centre to each region's nearest pixel: 0 for the region under it.
+        dist = ndi.distance_transform_edt(~_point(labels.shape, centre))
+        nearest = ndi.minimum(dist, labels, index)
+        nearest = np.where(present, nearest, np.inf)
+        keep = int(index[int(np.argmin(nearest))])
+    return (labels == keep).astype(np.int32)
+
+
+def _point(shape: tuple[int, int], rowcol: NDArray) -> NDArray[np.bool_]:
+    out = np.zeros(shape, bool)
+    out[round(rowcol[0]), round(rowcol[1])] = True
+    return out
+
+
+def _otsu(pixels: NDArray, kind: str) -> NDArray[np.int32]:
+    return _choose(_components(_otsu_mask(pixels)), kind)
+
+
+def _watershed(pixels: NDArray, kind: str) -> NDArray[np.int32]:
+    from skimage.feature import peak_local_max
+    from skimage.segmentation import watershed
+
+    cc = _components(_otsu_mask(pixels))
+    mask = cc > 0
+    if not mask.any():
+        return cc
+    distance = ndi.distance_transform_edt(mask)
+    min_distance = max(5, min(pixels.shape[:2]) // 40)
+    peaks = peak_local_max(distance, min_distance=min_distance, labels=cc, exclude_border=False)
+    markers = np.zeros(mask.shape, np.int32)
+    markers[tuple(peaks.T)] = np.arange(1, len(peaks) + 1)
+    labels = watershed(-distance, markers, mask=mask).astype(np.int32)
+    return _choose(_dense(labels), kind)
+
+
+def _grabcut(pixels: NDArray, kind: str) -> NDArray[np.int32]:
+    import cv2
+
+    rgb = pixels if pixels.ndim == 3 else np.repeat(pixels[..., None], 3, axis=2)
+    rows, cols = rgb.shape[:2]
+    factor = min(1.0, 256.0 / max(rows, cols))
+    small = cv2.resize(
+        rgb, (max(8, round(cols * factor)), max(8, round(rows * factor))), interpolation=cv2.INTER_AREA
+    )
+    h, w = small.shape[:2]
+    mr, mc = max(1, round(0.08 * h)), max(1, round(0.08 * w))
+    mask = np.zeros((h, w), np.uint8)
+    bgd, fgd = np.zeros((1, 65), np.float64), np.zeros((1, 65), np.float64)
+    try:
+        cv2.grabCut(
+            np.ascontiguousarray(small[..., ::-1]),
+            mask,
+            (mc, mr, w - 2 * mc, h - 2 * mr),
+            bgd,
+            fgd,
+            5,
+            cv2.GC_INIT_WITH_RECT,
+        )
+    except cv2.error:
+        return np.zeros((rows, cols), np.int32)
+    fg = ((mask == cv2.GC_FGD) | (mask == cv2.GC_PR_FGD)).astype(np.float32)
+    fg = cv2.resize(fg, (cols, rows), interpolation=cv2.INTER_LINEAR) >= 0.5
+    return _choose(_components(fg), kind)
+
+
+BUILTIN_METHODS: dict[str, Method] = {
+    "rockscan": _rockscan,
+    "otsu": _otsu,
+    "watershed": _watershed,
+    "grabcut": _grabcut,
+}
+
+
+# --------------------------------------------------------------------------- photos
+
+
+def coins_reference() -> NDArray[np.int32]:
+    """Reference labels of the 24 coins of ``skimage.data.coins()`` (see docs/segmentation.md)."""
+    from PIL import Image
+
+    return np.asarray(Image.open(COINS_REFERENCE), dtype=np.int32)
+
+
+def coin_crops() -> list[tuple[NDArray[np.uint8], NDArray[np.int32]]]:
+    """Every coin cut out at native resolution with a margin of a third of its diameter."""
+    from skimage import data
+
+    image = data.coins()
+    labels = coins_reference()
+    out = []
+    for k, sl in enumerate(ndi.find_objects(labels), start=1):
+        r0, r1, c0, c1 = sl[0].start, sl[0].stop, sl[1].start, sl[1].stop
+        diameter = max(r1 - r0, c1 - c0)
+        rc, cc = 0.5 * (r0 + r1 - 1), 0.5 * (c0 + c1 - 1)
+        half = diameter / 2 + diameter / 3
+        top, bottom = max(0, round(rc - half)), min(image.shape[0], round(rc + half) + 1)
+        left, right = max(0, round(cc - half)), min(image.shape[1], round(cc + half) + 1)
+        out.append((image[top:bottom, left:right], (labels[top:bottom, left:right] == k).astype(np.int32)))
+    return out
+
+
+def photo(part: str, condition: str, index: int) -> tuple[NDArray, NDArray[np.int32], str]:
+    """Photo ``index`` of a condition: (pixels, truth labels, kind)."""
+    if part == "real":
+        if condition == "coins-all":
+            from skimage import data
+
+            return data.coins(), coins_reference(), "all"
+        image, truth = coin_crops()[index]
+        return image, truth, "crop"
+    seed = scenes.part_seeds(part, 1, index)[0]
+    scene = scenes.make_scene(condition, seed)
+    return scene.image, scene.labels, scene.kind
+
+
+def photo_count(part: str, condition: str, n: int) -> int:
+    if part == "real":
+        return 1 if condition == "coins-all" else len(coin_crops())
+    return n
+
+
+# --------------------------------------------------------------------------- evaluation
+
+_METHODS: dict[str, Method] = {}
+
+
+def _score_one(task: tuple[str, str, int]) -> list[dict]:
+    part, condition, index = task
+    pixels, truth, kind = photo(part, condition, index)
+    records = []
+    for name, method in _METHODS.items():
+        start = time.perf_counter()
+        try:
+            found = method(pixels, kind)
+            error = ""
+        except RockscanError as exc:  # a photo the method refuses
+            found, error = np.zeros(truth.shape, np.int32), str(exc)
+        seconds = time.perf_counter() - start
+        record = {"method": name, "part": part, "condition": condition, "index": index, "kind": kind}
+        if kind == "all":
+            record.update(asdict(score_crowd(found, truth)))
+        else:
+            record.update(asdict(score_rock(found == 1, truth == 1)))
+        record.update(seconds=seconds, error=error)
+        records.append(record)
+    return records
+
+
+def run(
+    methods: dict[str, Method],
+    part: str,
+    conditions: Sequence[str],
+    n: int,
+    *,
+    jobs: int = 1,
+    progress: bool = True,
+) -> list[dict]:
+    """Score every method on the same photos; one record per (method, photo).
+
+    With ``jobs > 1`` photos are spread over forked processes (the methods
+    need not be picklable).
+    """
+    tasks = [(part, c, i) for c in conditions for i in range(photo_count(part, c, n))]
+    _METHODS.clear()
+    _METHODS.update(methods)
+    records: list[dict] = []
+    done = 0
+    start = time.perf_counter()
+
+    def tick(batch: list[dict]) -> None:
+        nonlocal done
+        records.extend(batch)
+        done += 1
+        if progress and (done % 10 == 0 or done == len(tasks)):
+            rate = done / (time.perf_counter() - start)
+            print(f"  {part}: {done}/{len(tasks)} photos ({rate:.1f}/s)", file=sys.stderr, flush=True)
+
+    if jobs <= 1:
+        for task in tasks:
+            tick(_score_one(task))
+    else:
+        import multiprocessing
+
+        with multiprocessing.get_context("fork").Pool(jobs) as pool:
+            for batch in pool.imap_unordered(_score_one, tasks, chunksize=2):
+                tick(batch)
+    records.sort(key=lambda r: (r["condition"], r["index"], r["method"]))
+    return records
+
+
+def summarize(records: list[dict]) -> list[dict]:
+    """One row per (part, condition, method), plus a row over all one-rock photos of a part."""
+    groups: dict[tuple[str, str, str], list[dict]] = {}
+    for r in records:
+        groups.setdefault((r["part"], r["condition"], r["method"]), []).append(r)
+        if r["part"] != "real" and r["kind"] == "one":
+            groups.setdefault((r["part"], "all one-rock", r["method"]), []).append(r)
+    rows = []
+    for (part, condition, method), rs in groups.items():
+        row = {"part": part, "condition": condition, "method": method, "n": len(rs), "kind": rs[0]["kind"]}
+        if rs[0]["kind"] == "all":
+            n_true = sum(r["n_true"] for r in rs)
+            row.update(
+                exact_count=float(np.mean([r["n_found"] == r["n_true"] for r in rs])),
+                matched=sum(r["matched"] for r in rs) / max(n_true, 1),
+                n_true=n_true,
+                merges=sum(r["merges"] for r in rs),
+                splits=sum(r["splits"] for r in rs),
+            )
+        else:
+            ious = np.array([r["iou"] for r in rs])
+            row.update(
+                good=float(np.mean(ious >= IOU_GOOD)),
+                median_iou=float(np.median(ious)),
+                centroid_error=float(np.median([r["centroid_error"] for r in rs])),
+                no_rock=sum(r["no_rock"] for r in rs),
+            )
+        row["seconds"] = float(np.mean([r["seconds"] for r in rs]))
+        rows.append(row)
+    order = {c: i for i, c in enumerate((*scenes.CONDITIONS, "all one-rock", *REAL_CONDITIONS))}
+    part_order = {p: i for i, p in enumerate(PARTS)}
+    method_order = {m: i for i, m in enumerate(METHODS)}
+    rows.sort(
+        key=lambda r: (
+            part_order.get(r["part"], 9),
+            order.get(r["condition"], 99),
+            method_order.get(r["method"], 9),
+        )
+    )
+    return rows
+
+
+def evaluate(
+    segment_fn: Callable,
+    part: str = "dev",
+    conditions: Sequence[str] | None = None,
+    n: int = 20,
+    *,
+    jobs: int = 1,
+    progress: bool = False,
+) -> list[dict]:
+    """Judge a segmenter on the benchmark; one summary row per condition.
+
+    Parameters
+    ----------
+    segment_fn : callable
+        ``segment_fn(pixels, all_rocks=bool)`` returning a
+        ``rockscan.segment.Segmentation`` or a label image at photo
+        resolution (1 = the main rock), raising ``NoRockFoundError`` when it
+        finds nothing; e.g. ``rockscan.segment.segment``.
+    part : {"dev", "heldout", "real"}
+        Tune on ``dev``; ``heldout`` is for reporting.
+    conditions : sequence of str, optional
+        Default: every condition of the part.
+    n : int
+        Photos per generated condition.
+    jobs : int
+        Processes.
+
+    Returns
+    -------
+    list of dict
+        Rows as printed by :func:`format_table`: ``good`` (share at IoU >=
+        0.9), ``median_iou``, ``centroid_error``, ``no_rock`` for one-rock
+        conditions; ``exact_count``, ``matched``, ``merges``, ``splits`` for
+        crowded ones; ``condition == "all one-rock"`` pools the one-rock
+        photos.
+    """
+    conditions = _check_conditions(part, conditions)
+    return summarize(
+        run({"candidate": as_method(segment_fn)}, part, conditions, n, jobs=jobs, progress=progress)
+    )
+
+
+def _check_conditions(part: str, conditions: Sequence[str] | None) -> list[str]:
+    if part not in PARTS:
+        raise ValueError(f"part must be one of {', '.join(PARTS)}, got {part!r}")
+    known = REAL_CONDITIONS if part == "real" else scenes.CONDITIONS
+    if conditions is None:
+        return list(known)
+    unknown = [c for c in conditions if c not in known]
+    if unknown:
+        raise ValueError(
+            f"unknown conditions for part {part}: {', '.join(unknown)}; known: {', '.join(known)}"
+        )
+    return list(conditions)
+
+
+def _pct(x: float) -> str:
+    return f"{100 * x:.1f}%"
+
+
+def format_table(rows: list[dict]) -> str:
+    """The results as one markdown table."""
+    lines = [
+        "| part | condition | method | n | IoU>=0.9 | median IoU | centroid err (r_eq) | no rock "
+        "| exact count | one-to-one | merges | splits |",
+        "|---|---|---|---|---|---|---|---|---|---|---|---|",
+    ]
+    for r in rows:
+        if r["kind"] == "all":
+            cells = [
+                "",
+                "",
+                "",
+                "",
+                _pct(r["exact_count"]),
+                _pct(r["matched"]),
+                str(r["merges"]),
+                str(r["splits"]),
+            ]
+            n = f"{r['n']} ({r['n_true']} rocks)"
+        else:
+            err = r["centroid_error"]
+            cells = [
+                _pct(r["good"]),
+                f"{r['median_iou']:.3f}",
+                f"{err:.3f}" if np.isfinite(err) else "inf",
+                str(r["no_rock"]),
+                "",
+                "",
+                "",
+                "",
+            ]
+            n = str(r["n"])
+        lines.append("| " + " | ".join([r["part"], r["condition"], r["method"], n, *cells]) + " |")
+    return "\n".join(lines)
+
+
+# --------------------------------------------------------------------------- figures
+
+
+def write_figures(directory: Path, part: str) -> list[Path]:
+    """Overlays of truth and rockscan's outline: a hard photo and a crowded scene."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    from skimage.measure import find_contours
+
+    directory.mkdir(parents=True, exist_ok=True)
+    written = []
+    for name, condition in (("segment-hard.png", "combined"), ("segment-crowded.png", "crowded")):
+        seed = scenes.part_seeds(part, 1)[0]
+        scene = scenes.make_scene(condition, seed)
+        found = _rockscan(scene.image, scene.kind)
+        fig, ax = plt.subplots(figsize=(8, 8 * scene.image.shape[0] / scene.image.shape[1]), dpi=100)
+        ax.imshow(scene.image, cmap="gray", vmin=0, vmax=255)
+        for labels, color, width in ((scene.labels, "lime", 2.5), (found, "red", 1.2)):
+            for k in range(1, int(labels.max()) + 1):
+                for contour in find_contours((labels == k).astype(float), 0.5):
+                    ax.plot(contour[:, 1], contour[:, 0], color=color, lw=width)
+        ax.set_title(f"{condition} ({part}, seed {seed}): truth green, rockscan red", fontsize=10)
+        ax.set_axis_off()
+        fig.tight_layout()
+        path = directory / name
+        fig.savefig(path)
+        plt.close(fig)
+        written.append(path)
+    return written
+
+
+# --------------------------------------------------------------------------- CLI
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(
+        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
+    )
+    parser.add_argument(
+        "--part", choices=(*PARTS, "both"), default="dev", help="default dev; both = dev, heldout, real"
+    )
+    parser.add_argument("-n", "--n", type=int, default=10, help="photos per generated condition (default 10)")
+    parser.add_argument("--conditions", default="", help="comma-separated conditions (default: all)")
+    parser.add_argument("--methods", default=",".join(METHODS), help="comma-separated rows (default: all)")
+    parser.add_argument("--jobs", type=int, default=1, help="processes (default 1)")
+    parser.add_argument("--json", type=Path, help="write the rows and per-photo records here")
+    parser.add_argument("--figures", type=Path, help="write the overlay figures into this folder")
+    args = parser.parse_args(argv)
+    methods = [m for m in args.methods.split(",") if m]
+    unknown = [m for m in methods if m not in BUILTIN_METHODS]
+    if unknown or args.n < 1 or args.jobs < 1:
+        print(
+            f"error: unknown methods {unknown} or n/jobs below 1; methods: {', '.join(METHODS)}",
+            file=sys.stderr,
+        )
+        return 2
+    parts = ["dev", "heldout", "real"] if args.part == "both" else [args.part]
+    wanted = [c for c in args.conditions.split(",") if c] or None
+    records = []
+    try:
+        for part in parts:
+            conditions = _check_conditions(part, [c for c in wanted if c in _known(part)] if wanted else None)
+            records += run({m: BUILTIN_METHODS[m] for m in methods}, part, conditions, args.n, jobs=args.jobs)
+    except ValueError as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return 2
+    rows = summarize(records)
+    print(format_table(rows))
+    if args.json:
+        args.json.write_text(json.dumps({"rows": rows, "records": records}, indent=1, default=float))
+    if args.figures:
+        for path in write_figures(
+            args.figures, "heldout" if "heldout" in parts else parts[0] if parts[0] != "real" else "dev"
+        ):
+            print(f"wrote {path}", file=sys.stderr)
+    return 0
+
+
+def _known(part: str) -> tuple[str, ...]:
+    return REAL_CONDITIONS if part == "real" else scenes.CONDITIONS
+
+
+if __name__ == "__main__":
+    os.environ.setdefault("OMP_NUM_THREADS", "1")
+    sys.exit(main())
