@@ -15,8 +15,8 @@ Columns, for photos of one rock and crops (the truth is one rock): share of
 photos whose outline has IoU >= 0.9 with the truth, median IoU, median error
 of the centroid in equivalent radii ``sqrt(area / pi)`` of the truth, and
 "no rock" (the method found nothing). For ``--all`` scenes: share of scenes
-whose count is exact, share of true rocks matched one to one (IoU >= 0.5;
-with that threshold a match is unique), merges (found regions holding most of
+whose count is exact, share of true rocks matched one to one (IoU > 0.5;
+above that threshold a match is unique), merges (found regions holding most of
 two or more true rocks) and splits (true rocks holding most of two or more
 found regions).
 
@@ -67,7 +67,7 @@ REAL_CONDITIONS = ("coins-all", "coins-crops")
 REAL_KINDS = {"coins-all": "all", "coins-crops": "crop"}
 METHODS = ("rockscan", "otsu", "watershed", "grabcut")
 PARTS = ("dev", "heldout", "real")
-#: IoU a rock must reach to count as outlined; IoU of a one-to-one match.
+#: IoU a rock must reach to count as outlined; IoU a one-to-one match must exceed.
 IOU_GOOD = 0.9
 IOU_MATCH = 0.5
 
@@ -109,7 +109,7 @@ class CrowdScore:
 
     n_true: int
     n_found: int
-    matched: int  # one-to-one matches at IoU >= 0.5
+    matched: int  # one-to-one matches at IoU > 0.5
     merges: int  # found regions holding most of >= 2 true rocks
     splits: int  # true rocks holding most of >= 2 found regions
 
@@ -140,7 +140,7 @@ def score_crowd(found: NDArray[np.integer], truth: NDArray[np.integer]) -> Crowd
         union = area_found[:, None] + area_true[None, :] - inter
         ious = inter / np.maximum(union, 1.0)
         rows, cols = linear_sum_assignment(-ious)
-        matched = int(np.count_nonzero(ious[rows, cols] >= IOU_MATCH))
+        matched = int(np.count_nonzero(ious[rows, cols] > IOU_MATCH))
     # Most of a true rock inside one found region; most of a found region inside one true rock.
     holds_true = inter >= 0.5 * area_true[None, :]
     holds_found = inter >= 0.5 * area_found[:, None]

@@ -363,9 +363,14 @@ class Blob:
         """Pixels whose centres lie inside the outline (the truth)."""
         out = np.zeros(shape, dtype=bool)
         rs, cs = self.box(shape)
-        rr, cc = np.mgrid[rs, cs]
-        out[rs, cs] = self.field(rr.astype(float), cc.astype(float)) <= 1.0
+        out[rs, cs] = self.box_mask(shape)
         return out
+
+    def box_mask(self, shape: tuple[int, int]) -> NDArray[np.bool_]:
+        """The truth within :meth:`box`."""
+        rs, cs = self.box(shape)
+        rr, cc = np.mgrid[rs, cs]
+        return self.field(rr.astype(float), cc.astype(float)) <= 1.0
 
 
 def random_blob(
@@ -606,16 +611,22 @@ def _place(rng: np.random.Generator, shape: tuple[int, int], blob: Blob, margin:
 def _touching(rng: np.random.Generator, anchor: Blob, blob: Blob, overlap: float) -> Blob:
     """The blob moved to touch ``anchor`` from a random side (``overlap`` of its radius inside)."""
     theta = rng.uniform(0, 2 * np.pi)
-    # Walk out from the anchor's centre until the two outlines just meet.
-    dist = anchor.radius * 0.5
     direction = np.array([math.sin(theta), math.cos(theta)])
     pts = blob.boundary(180) - np.asarray(blob.center_rowcol)
-    for _ in range(400):
+
+    def apart(dist: float) -> bool:
         c = np.asarray(anchor.center_rowcol) + dist * direction
-        f = anchor.field(pts[:, 0] + c[0], pts[:, 1] + c[1])
-        if f.min() > 1.0:
-            break
-        dist += max(0.5, 0.02 * anchor.radius)
+        return bool(anchor.field(pts[:, 0] + c[0], pts[:, 1] + c[1]).min() > 1.0)
+
+    # Out from the anchor's centre until the outlines no longer meet, then
+    # bisect to where they just touch.
+    near, far = 0.0, anchor.extent + blob.extent
+    while not apart(far):  # pragma: no cover - the extents enclose both outlines
+        far *= 1.5
+    for _ in range(12):
+        mid = 0.5 * (near + far)
+        near, far = (near, mid) if apart(mid) else (mid, far)
+    dist = far
     dist -= overlap * blob.radius
     c = np.asarray(anchor.center_rowcol) + dist * direction
     return Blob(
@@ -754,7 +765,7 @@ def one_rock_photo(rng: np.random.Generator, part: str, condition: str = "plain"
         swing = rng.uniform(0.25, 0.45)
         rr, cc = np.mgrid[0 : shape[0], 0 : shape[1]].astype(np.float64)
         t = ((rr - blob.center_rowcol[0]) * math.sin(a) + (cc - blob.center_rowcol[1]) * math.cos(a)) / rock_r
-        ground = ground * (1.0 + swing * np.clip(t, -1.5, 1.5) / 1.5)[..., None]
+        ground = ground * (1.0 + swing * np.clip(t, -1.0, 1.0))[..., None]
         contrast_v = swing
     image, labels = _render(rng, part, shape, ground, [*pebbles, rock], light, camera)
     info = {
@@ -819,12 +830,13 @@ def _crowd(
                 if blob is None:
                     area *= 0.9
                     continue
-            m = blob.mask(shape)
-            if (m & occupied).sum() <= 0.03 * m.sum():
+            box = blob.box(shape)
+            m = blob.box_mask(shape)
+            if (m & occupied[box]).sum() <= 0.03 * m.sum():
                 break
         else:
             continue
-        occupied |= m
+        occupied[box] |= m
         blobs.append(blob)
         if similar_color:
             level = ground_level * (1.0 + polarity * shared_contrast * rng.uniform(0.93, 1.07))
