@@ -379,8 +379,19 @@ def photo(part: str, condition: str, index: int) -> tuple[NDArray, NDArray[np.in
         image, truth = coin_crops()[index]
         return image, truth, "crop"
     seed = scenes.part_seeds(part, 1, index)[0]
+    kind = scenes.CONDITION_KINDS[condition]
+    if _CACHE_DIR is not None:
+        path = _CACHE_DIR / f"v{scenes.GENERATOR_VERSION}-{condition}-{seed}.npz"
+        if path.exists():
+            with np.load(path) as stored:
+                return stored["image"], stored["labels"], kind
     scene = scenes.make_scene(condition, seed)
-    return scene.image, scene.labels, scene.kind
+    if _CACHE_DIR is not None:
+        _CACHE_DIR.mkdir(parents=True, exist_ok=True)
+        tmp = path.with_suffix(f".{os.getpid()}.tmp.npz")
+        np.savez_compressed(tmp, image=scene.image, labels=scene.labels)
+        tmp.replace(path)  # atomic: parallel workers never read half a file
+    return scene.image, scene.labels, kind
 
 
 def photo_count(part: str, condition: str, n: int) -> int:
@@ -392,6 +403,8 @@ def photo_count(part: str, condition: str, n: int) -> int:
 # --------------------------------------------------------------------------- evaluation
 
 _METHODS: dict[str, Method] = {}
+#: Where generated photos are kept between runs (None: generate every time).
+_CACHE_DIR: Path | None = None
 
 
 def _score_one(task: tuple[str, str, int]) -> list[dict]:
@@ -424,15 +437,19 @@ def run(
     *,
     jobs: int = 1,
     progress: bool = True,
+    cache: Path | None = None,
 ) -> list[dict]:
     """Score every method on the same photos; one record per (method, photo).
 
     With ``jobs > 1`` photos are spread over forked processes (the methods
-    need not be picklable).
+    need not be picklable). With ``cache``, generated photos are stored there
+    and read back on later runs (keyed by generator version, condition, seed).
     """
+    global _CACHE_DIR
     tasks = [(part, c, i) for c in conditions for i in range(photo_count(part, c, n))]
     _METHODS.clear()
     _METHODS.update(methods)
+    _CACHE_DIR = None if cache is None else Path(cache)
     records: list[dict] = []
     done = 0
     start = time.perf_counter()
@@ -508,6 +525,7 @@ def evaluate(
     *,
     jobs: int = 1,
     progress: bool = False,
+    cache: Path | str | None = None,
 ) -> list[dict]:
     """Judge a segmenter on the benchmark; one summary row per condition.
 
@@ -526,6 +544,11 @@ def evaluate(
         Photos per generated condition.
     jobs : int
         Processes.
+    progress : bool
+        Print progress to stderr.
+    cache : path, optional
+        A folder to keep generated photos in, so that later runs skip
+        rendering.
 
     Returns
     -------
@@ -537,9 +560,8 @@ def evaluate(
         photos.
     """
     conditions = _check_conditions(part, conditions)
-    return summarize(
-        run({"candidate": as_method(segment_fn)}, part, conditions, n, jobs=jobs, progress=progress)
-    )
+    methods = {"candidate": as_method(segment_fn)}
+    return summarize(run(methods, part, conditions, n, jobs=jobs, progress=progress, cache=cache))
 
 
 def _check_conditions(part: str, conditions: Sequence[str] | None) -> list[str]:
@@ -646,6 +668,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--jobs", type=int, default=1, help="processes (default 1)")
     parser.add_argument("--json", type=Path, help="write the rows and per-photo records here")
     parser.add_argument("--figures", type=Path, help="write the overlay figures into this folder")
+    parser.add_argument("--cache", type=Path, help="keep generated photos in this folder between runs")
     args = parser.parse_args(argv)
     methods = [m for m in args.methods.split(",") if m]
     unknown = [m for m in methods if m not in BUILTIN_METHODS]
@@ -661,7 +684,8 @@ def main(argv: list[str] | None = None) -> int:
     try:
         for part in parts:
             conditions = _check_conditions(part, [c for c in wanted if c in _known(part)] if wanted else None)
-            records += run({m: BUILTIN_METHODS[m] for m in methods}, part, conditions, args.n, jobs=args.jobs)
+            chosen = {m: BUILTIN_METHODS[m] for m in methods}
+            records += run(chosen, part, conditions, args.n, jobs=args.jobs, cache=args.cache)
     except ValueError as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2

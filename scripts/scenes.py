@@ -85,6 +85,7 @@ __all__ = [
     "CONDITIONS",
     "CONDITION_KINDS",
     "CROWDED_CONDITIONS",
+    "GENERATOR_VERSION",
     "GROUND_SOURCES",
     "PARTS",
     "SINGLE_CONDITIONS",
@@ -123,6 +124,8 @@ CONDITIONS = SINGLE_CONDITIONS + CROWDED_CONDITIONS
 CONDITION_KINDS = {**{name: "one" for name in SINGLE_CONDITIONS}, "crowded": "all", "crop-neighbours": "crop"}
 
 PARTS = ("dev", "heldout")
+#: Changes whenever a seed's scene changes (caches of scenes key on it).
+GENERATOR_VERSION = 1
 #: Seeds of each part: [first, stop).
 PART_SEEDS = {"dev": (0, 10_000), "heldout": (100_000, 2**31)}
 #: scikit-image's photos grounds are cut from, and those rock skins are cut from.
@@ -789,7 +792,7 @@ def _crowd(
     shape: tuple[int, int],
     n_rocks: int,
     radius_range: tuple[float, float] | None = None,
-    touch: float = 0.7,
+    touch: float = 0.85,
 ) -> tuple[NDArray[np.uint8], NDArray[np.int32], dict]:
     """Many rocks, mostly touching; every rock fully inside the frame."""
     frame = shape[0] * shape[1]
