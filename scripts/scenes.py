@@ -772,7 +772,7 @@ def one_rock_photo(rng: np.random.Generator, part: str, condition: str = "plain"
         contrast_v = swing
     image, labels = _render(rng, part, shape, ground, [*pebbles, rock], light, camera)
     info = {
-        "contrast": round(contrast_v, 4),
+        "contrast": 0.0 if c == "colour-only" else round(contrast_v, 4),
         "coverage": round(float((labels == 1).mean()), 4),
         "elevation_deg": round(math.degrees(light.elevation), 1),
         "blur": round(camera.blur, 2),
