@@ -2,10 +2,11 @@
 
 Photos come from :mod:`scenes` (a generator independent of
 ``rockscan.render``, see its docstring for the conditions and the split) and
-from real photos shipped with scikit-image (every coin of ``coins()``, and
-every single-coin crop at native resolution with a margin of a third of its
-diameter; the reference outlines are ``tests/data/coins_reference.png``, see
-docs/segmentation.md).
+from real photos shipped with scikit-image (every coin of ``coins()``, every
+single-coin crop at native resolution with a margin of a third of its
+diameter, and the cell of ``cell()`` inside its dark halo; the reference
+outlines are ``tests/data/coins_reference.png`` and ``cell_reference.png``,
+see docs/segmentation.md).
 
 Parts: ``dev`` (seeds 0-9999, textures from the top half of each source
 photo) is for tuning; ``heldout`` (seeds 100000+, textures from the bottom
@@ -62,9 +63,9 @@ from rockscan.errors import NoRockFoundError, RockscanError
 
 ROOT = Path(__file__).resolve().parents[1]
 COINS_REFERENCE = ROOT / "tests" / "data" / "coins_reference.png"
+CELL_REFERENCE = ROOT / "tests" / "data" / "cell_reference.png"
 #: Real-photo conditions (part ``real``).
-REAL_CONDITIONS = ("coins-all", "coins-crops")
-REAL_KINDS = {"coins-all": "all", "coins-crops": "crop"}
+REAL_CONDITIONS = ("coins-all", "coins-crops", "cell")
 METHODS = ("rockscan", "otsu", "watershed", "grabcut")
 PARTS = ("dev", "heldout", "real")
 #: IoU a rock must reach to count as outlined; IoU a one-to-one match must exceed.
@@ -344,11 +345,20 @@ BUILTIN_METHODS: dict[str, Method] = {
 # --------------------------------------------------------------------------- photos
 
 
-def coins_reference() -> NDArray[np.int32]:
-    """Reference labels of the 24 coins of ``skimage.data.coins()`` (see docs/segmentation.md)."""
+def _read_labels(path: Path) -> NDArray[np.int32]:
     from PIL import Image
 
-    return np.asarray(Image.open(COINS_REFERENCE), dtype=np.int32)
+    return np.asarray(Image.open(path), dtype=np.int32)
+
+
+def coins_reference() -> NDArray[np.int32]:
+    """Reference labels of the 24 coins of ``skimage.data.coins()`` (see docs/segmentation.md)."""
+    return _read_labels(COINS_REFERENCE)
+
+
+def cell_reference() -> NDArray[np.int32]:
+    """Reference outline of the cell of ``skimage.data.cell()``, without its halo (label 1)."""
+    return _read_labels(CELL_REFERENCE)
 
 
 def coin_crops() -> list[tuple[NDArray[np.uint8], NDArray[np.int32]]]:
@@ -372,10 +382,12 @@ def coin_crops() -> list[tuple[NDArray[np.uint8], NDArray[np.int32]]]:
 def photo(part: str, condition: str, index: int) -> tuple[NDArray, NDArray[np.int32], str]:
     """Photo ``index`` of a condition: (pixels, truth labels, kind)."""
     if part == "real":
-        if condition == "coins-all":
-            from skimage import data
+        from skimage import data
 
+        if condition == "coins-all":
             return data.coins(), coins_reference(), "all"
+        if condition == "cell":
+            return data.cell(), cell_reference(), "one"
         image, truth = coin_crops()[index]
         return image, truth, "crop"
     seed = scenes.part_seeds(part, 1, index)[0]
@@ -396,7 +408,7 @@ def photo(part: str, condition: str, index: int) -> tuple[NDArray, NDArray[np.in
 
 def photo_count(part: str, condition: str, n: int) -> int:
     if part == "real":
-        return 1 if condition == "coins-all" else len(coin_crops())
+        return len(coin_crops()) if condition == "coins-crops" else 1
     return n
 
 

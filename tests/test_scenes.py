@@ -361,3 +361,17 @@ def test_coin_crops_are_centred_with_a_third_of_a_diameter_of_margin():
         assert max(image.shape) <= round(5 * diameter / 3) + 2
         margins = (rows[0], image.shape[0] - 1 - rows[-1], cols[0], image.shape[1] - 1 - cols[-1])
         assert max(margins) >= diameter / 3 - 1
+
+
+def test_cell_reference_is_one_round_cell_inside_its_halo():
+    from skimage import data
+    from skimage.measure import regionprops
+
+    labels = bench.cell_reference()
+    image = data.cell()
+    assert labels.shape == image.shape and labels.max() == 1
+    (region,) = regionprops(labels)
+    assert region.solidity > 0.97 and region.eccentricity < 0.4
+    # Inside, the cell is bright; just outside lies the dark halo, not the cell.
+    ring = ndi.binary_dilation(labels == 1, iterations=3) & ~(labels == 1)
+    assert np.median(image[labels == 1]) > 2 * np.median(image[ring])

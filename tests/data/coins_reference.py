@@ -1,8 +1,9 @@
-"""Make the reference outlines of the 24 coins of ``skimage.data.coins()``.
+"""Make the reference outlines of the 24 coins of ``skimage.data.coins()`` and of ``cell()``.
 
 Writes ``coins_reference.png`` beside this file: a label image of the photo's
 size, 0 for the background and 1-24 for the coins, numbered by rows of coins
-from the top, left to right. How the outlines were made and checked is in
+from the top, left to right; and ``cell_reference.png``, the bright cell of
+``skimage.data.cell()`` (label 1) without its dark phase-contrast halo. How the outlines were made and checked is in
 docs/segmentation.md; run ``python tests/data/coins_reference.py`` to remake
 the file (the result is the same, bit for bit).
 
@@ -166,8 +167,38 @@ def reference(image: np.ndarray) -> np.ndarray:
     return labels
 
 
+def cell_reference(image: np.ndarray) -> np.ndarray:
+    """The cell: on 720 rays (Gaussian 1 px), half-way between its median level and the halo's minimum."""
+    smooth = ndi.gaussian_filter(image.astype(float), 1.0)
+    parts, _ = ndi.label(smooth > 150)
+    cell = ndi.binary_fill_holes(parts == np.argmax(np.bincount(parts.ravel())[1:]) + 1)
+    cr, cc = ndi.center_of_mass(cell)
+    radius = np.sqrt(cell.sum() / np.pi)
+    theta = np.linspace(0, 2 * np.pi, N_RAYS, endpoint=False)
+    t = np.arange(0.5 * radius, 1.5 * radius, 0.1)
+    profile = ndi.map_coordinates(
+        smooth, [cr + np.outer(np.sin(theta), t), cc + np.outer(np.cos(theta), t)], order=1
+    )
+    level = np.median(image[ndi.binary_erosion(cell, iterations=5)])
+    radii = np.zeros(N_RAYS)
+    for a in range(N_RAYS):
+        p = profile[a]
+        j = int(np.argmin(p))
+        threshold = p[j] + 0.5 * (level - p[j])
+        i = np.nonzero(p[:j] >= threshold)[0][-1]
+        radii[a] = t[i] + (p[i] - threshold) / (p[i] - p[i + 1]) * (t[i + 1] - t[i])
+    radii = ndi.median_filter(radii, size=9, mode="wrap")
+    out = np.zeros(image.shape, np.int32)
+    out[polygon(cr + radii * np.sin(theta), cc + radii * np.cos(theta), image.shape)] = 1
+    return out
+
+
 if __name__ == "__main__":
+    here = Path(__file__).parent
     labels = reference(data.coins())
     assert labels.max() == 24
-    Image.fromarray(labels.astype(np.uint8)).save(Path(__file__).with_name("coins_reference.png"))
-    print("areas:", np.bincount(labels.ravel())[1:].tolist())
+    Image.fromarray(labels.astype(np.uint8)).save(here / "coins_reference.png")
+    print("coin areas:", np.bincount(labels.ravel())[1:].tolist())
+    cell = cell_reference(data.cell())
+    Image.fromarray(cell.astype(np.uint8)).save(here / "cell_reference.png")
+    print("cell area:", int(cell.sum()))
