@@ -693,8 +693,18 @@ def main(argv: list[str] | None = None) -> int:
     parts = ["dev", "heldout", "real"] if args.part == "both" else [args.part]
     wanted = [c for c in args.conditions.split(",") if c] or None
     records = []
+    known = {c for part in parts for c in _known(part)}
+    unknown = [c for c in wanted or () if c not in known]
+    if unknown:
+        print(
+            f"error: unknown conditions {', '.join(unknown)}; known: {', '.join(sorted(known))}",
+            file=sys.stderr,
+        )
+        return 2
     try:
         for part in parts:
+            if wanted and not set(wanted) & set(_known(part)):
+                continue
             conditions = _check_conditions(part, [c for c in wanted if c in _known(part)] if wanted else None)
             chosen = {m: BUILTIN_METHODS[m] for m in methods}
             records += run(chosen, part, conditions, args.n, jobs=args.jobs, cache=args.cache)
@@ -704,13 +714,26 @@ def main(argv: list[str] | None = None) -> int:
     rows = summarize(records)
     print(format_table(rows))
     if args.json:
-        args.json.write_text(json.dumps({"rows": rows, "records": records}, indent=1, default=float))
+        args.json.write_text(json.dumps(_finite({"rows": rows, "records": records}), indent=1))
     if args.figures:
         for path in write_figures(
             args.figures, "heldout" if "heldout" in parts else parts[0] if parts[0] != "real" else "dev"
         ):
             print(f"wrote {path}", file=sys.stderr)
     return 0
+
+
+def _finite(value):
+    """``value`` with every infinite or NaN float as None (strict JSON has neither)."""
+    if isinstance(value, dict):
+        return {k: _finite(v) for k, v in value.items()}
+    if isinstance(value, list | tuple):
+        return [_finite(v) for v in value]
+    if isinstance(value, float | np.floating):
+        return float(value) if np.isfinite(value) else None
+    if isinstance(value, np.integer | np.bool_):
+        return value.item()
+    return value
 
 
 def _known(part: str) -> tuple[str, ...]:

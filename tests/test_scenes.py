@@ -375,3 +375,31 @@ def test_cell_reference_is_one_round_cell_inside_its_halo():
     # Inside, the cell is bright; just outside lies the dark halo, not the cell.
     ring = ndi.binary_dilation(labels == 1, iterations=3) & ~(labels == 1)
     assert np.median(image[labels == 1]) > 2 * np.median(image[ring])
+
+
+def test_the_benchmark_prints_one_table_and_writes_strict_json(tmp_path, capsys):
+    import json
+
+    out = tmp_path / "bench.json"
+    assert (
+        bench.main(["--n", "1", "--conditions", "small,crowded", "--methods", "otsu", "--json", str(out)])
+        == 0
+    )
+    table = capsys.readouterr().out
+    assert table.startswith("| part | condition | method |")
+    assert "| dev | small | otsu | 1 |" in table and "| dev | crowded | otsu | 1 (" in table
+    data = json.loads(out.read_text(), parse_constant=lambda name: pytest.fail(f"{name} in JSON"))
+    assert {r["condition"] for r in data["rows"]} == {"small", "crowded", "all one-rock"}
+    assert len(data["records"]) == 2
+
+
+def test_the_benchmark_refuses_an_unknown_condition_in_one_line(capsys):
+    assert bench.main(["--conditions", "nope", "--methods", "otsu"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert err[-1].startswith("error: unknown conditions") and "plain" in err[-1]
+
+
+def test_a_label_image_of_the_wrong_shape_is_refused():
+    method = bench.as_method(lambda pixels, *, all_rocks: np.zeros((3, 3), np.int32))
+    with pytest.raises(ValueError, match="shape"):
+        method(np.zeros((10, 10), np.uint8), "one")
