@@ -619,7 +619,7 @@ def format_table(rows: list[dict]) -> str:
             cells = [
                 _pct(r["good"]),
                 f"{r['median_iou']:.3f}",
-                f"{err:.3f}" if np.isfinite(err) else "inf",
+                "inf" if err is None or not np.isfinite(err) else f"{err:.3f}",  # None: read back from JSON
                 str(r["no_rock"]),
                 "",
                 "",
