@@ -865,7 +865,7 @@ def _detect(
         flat = _flatten(image, lighting, channel.multiplicative)
         # A smooth ground has a tiny spread; the floor keeps a rock at least
         # min_contrast from it, so that noise and JPEG blocks are no rock.
-        z = _robust_z(flat, stat_ground, config.min_contrast / config.z_detect)
+        z = _robust_z(flat, stat_ground, config.min_contrast / config.z_detect, local=round_ == 0)
         last = round_ == config.iterations
         # Before the last round every rock counts, not only the main one: a
         # neighbour intruding into a crop is no ground for the next round.
@@ -900,15 +900,36 @@ def _luminance_polarity(work: NDArray[np.generic], dtype: np.dtype, rock: RockMa
     return "light" if float(np.median(lum[rock.mask])) > float(np.median(outside)) else "dark"
 
 
-def _robust_z(flat: NDArray[np.float32], ground: NDArray[np.bool_], floor: float) -> NDArray[np.float32]:
-    """Deviation from the ground in robust standard deviations (median, MAD, at least ``floor``)."""
+def _robust_z(
+    flat: NDArray[np.float32], ground: NDArray[np.bool_], floor: float, *, local: bool = False
+) -> NDArray[np.float32]:
+    """Deviation from the ground in robust standard deviations (median, MAD, at least ``floor``;
+    with ``local``, at most the typical spread of the ground's stretches)."""
     values = flat[ground] if ground.sum() > 50 else flat.ravel()
     # Every fourth value gives the same statistics at a quarter of the cost.
     values = values[::4] if values.size > 4000 else values
     median = float(np.median(values))
     mad = float(np.median(np.abs(values - median))) * 1.4826
+    if local:
+        # Neighbours reaching into the frame's border (a crop) widen the MAD
+        # of the whole band; the ground's own spread is that of most of its
+        # stretches, each about even.
+        mad = min(mad, _stretch_spread(flat, ground))
     spread = max(mad, floor, 1e-6)
     return ((flat - median) / spread).astype(np.float32)
+
+
+def _stretch_spread(flat: NDArray[np.float32], ground: NDArray[np.bool_]) -> float:
+    """Median over an 8 x 8 grid of the frame of the ground's robust spread in each cell."""
+    rows, cols = flat.shape
+    spreads = []
+    for r in range(8):
+        for c in range(8):
+            cell = (slice(r * rows // 8, (r + 1) * rows // 8), slice(c * cols // 8, (c + 1) * cols // 8))
+            values = flat[cell][ground[cell]]
+            if values.size >= 12:
+                spreads.append(1.4826 * float(np.median(np.abs(values - np.median(values)))))
+    return float(np.median(spreads)) if len(spreads) >= 4 else math.inf
 
 
 #: Contrast beyond which a pixel counts no more toward its region's edge step,
