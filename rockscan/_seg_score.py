@@ -63,7 +63,7 @@ class OutlineEvidence:
 
 #: Logistic weights of the evidence (support, weak, outside, noise, frame,
 #: solidity) and the intercept, fitted on the benchmark's development part.
-WEIGHTS = np.array([6.0, -6.0, -6.0, -4.0, -6.0, 6.0])
+WEIGHTS = np.array([6.0, -10.0, -6.0, -4.0, -6.0, 6.0])
 INTERCEPT = -5.5
 
 
@@ -99,13 +99,20 @@ def outline_evidence(
         return OutlineEvidence(0.0, 1.0, 1.0, 1.0, 0.0, 0.0)
     radius = math.sqrt(area / math.pi)
     width = max(2, round(0.08 * radius))
-    disk = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * width + 1, 2 * width + 1))
-    pad = width + 1
+    # The bands stand a band's width off the outline: a blurred edge is a
+    # ramp across the outline, and a right outline has rock beyond the ramp
+    # on one side and ground on the other.
+    gap = width
+    reach = gap + width
+    pad = reach + 1
     # Pad with replicated values so that bands near the window's edge are whole.
     lv = cv2.copyMakeBorder(level.astype(np.float32), pad, pad, pad, pad, cv2.BORDER_REPLICATE)
     mk = cv2.copyMakeBorder(m8, pad, pad, pad, pad, cv2.BORDER_CONSTANT, value=0)
-    inner = mk & (1 - cv2.erode(mk, disk))
-    outer = cv2.dilate(mk, disk) & (1 - mk)
+    # Distances to the outline, inside and outside, give the bands without large structuring elements.
+    inside_dist = cv2.distanceTransform(mk, cv2.DIST_L2, 3)
+    outside_dist = cv2.distanceTransform(1 - mk, cv2.DIST_L2, 3)
+    inner = ((inside_dist > gap) & (inside_dist <= reach)).astype(np.uint8)
+    outer = ((outside_dist > gap) & (outside_dist <= reach)).astype(np.uint8)
     boundary = (mk & (1 - cv2.erode(mk, np.ones((3, 3), np.uint8)))).astype(bool)
     # The frame: boundary pixels on a window edge that is the photo's edge.
     on_frame = np.zeros(mk.shape, bool)
@@ -122,7 +129,7 @@ def outline_evidence(
     inside_px = boundary & ~on_frame
     n_boundary = int(boundary.sum())
     frame = float(frame_px.sum()) / max(n_boundary, 1)
-    size = (2 * width + 1, 2 * width + 1)
+    size = (2 * reach + 1, 2 * reach + 1)
     in_n = cv2.boxFilter(inner.astype(np.float32), -1, size, normalize=False)
     in_s = cv2.boxFilter(lv * inner, -1, size, normalize=False)
     out_n = cv2.boxFilter(outer.astype(np.float32), -1, size, normalize=False)
@@ -137,11 +144,7 @@ def outline_evidence(
         support = float(np.clip(step, 0.0, 1.0).mean())
         weak = float((step < 1.0 / 3.0).mean())
         outside = float(np.clip(outside_mean, 0.0, 1.0).mean())
-    ring = (
-        (cv2.dilate(mk, cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (6 * width + 1, 6 * width + 1))) > 0)
-        & (outer == 0)
-        & (mk == 0)
-    )
+    ring = (outside_dist > reach) & (outside_dist <= 3 * reach)
     ring = ring[pad:-pad, pad:-pad]
     values = level[ring] if ring.sum() >= 8 else level[~mask]
     if values.size >= 8:

@@ -364,8 +364,9 @@ def segment(
             key = _choice_key(found, best[1] if best else None)
             if best is None or key > best[0]:
                 best = (key, found)
-            # Fast path: an outline the photo clearly supports needs no rival.
-            if best[1].rocks[0].score >= FAST_SCORE:
+            # Fast path: an outline the photo clearly supports, of a rock that
+            # stood out clearly from every other region, needs no rival.
+            if best[1].rocks[0].score >= FAST_SCORE and _unrivalled(detection):
                 return best[1]
     if best is None:
         raise NoRockFoundError("no rock found: nothing stands out from the ground")
@@ -380,11 +381,23 @@ def segment(
 FAST_SCORE = 0.9
 
 
+def _unrivalled(detection: _Detection) -> bool:
+    """Whether the main region's detection score is far above every other region's."""
+    rivals = [
+        score for score, region, _ in detection.alternatives if _overlap(region, detection.regions[0]) < 0.5
+    ]
+    return not rivals or max(rivals) <= _RIVAL_SHARE * detection.score
+
+
+#: Share of the main region's detection score that a rival must stay under for the fast path.
+_RIVAL_SHARE = 0.25
+
+
 def _candidates(detection: _Detection) -> Iterator[_Detection]:
     """The detection's main rock, then its alternatives (whole regions, runners-up, the other polarity)."""
     yield detection
     seen = [detection.regions[0]]
-    for region, polarity in detection.alternatives:
+    for _, region, polarity in detection.alternatives:
         if any(_overlap(region, other) > 0.9 for other in seen):
             continue
         seen.append(region)
@@ -712,8 +725,8 @@ class _Detection:
     outliers: NDArray[np.bool_]
     #: Every other rock-like region of the rocks' polarity (neighbours in a crop).
     others: list[NDArray[np.bool_]]
-    #: Regions that might be the main rock instead, with their polarity, best first.
-    alternatives: list[tuple[NDArray[np.bool_], str]]
+    #: Regions that might be the main rock instead: (score, region, polarity), best first.
+    alternatives: list[tuple[float, NDArray[np.bool_], str]]
 
 
 def _poly_terms(rows_norm: NDArray[np.float64], cols_norm: NDArray[np.float64], degree: int) -> list:
@@ -865,11 +878,16 @@ def _detect(
         flat = _flatten(image, lighting, channel.multiplicative)
         # A smooth ground has a tiny spread; the floor keeps a rock at least
         # min_contrast from it, so that noise and JPEG blocks are no rock.
-        z = _robust_z(flat, stat_ground, config.min_contrast / config.z_detect, local=round_ == 0)
+        z = _robust_z(flat, stat_ground, config.min_contrast / config.z_detect)
         last = round_ == config.iterations
         # Before the last round every rock counts, not only the main one: a
         # neighbour intruding into a crop is no ground for the next round.
         found = _best_regions(z, config, min_area, all_rocks or not last, split=last)
+        if found is None and round_ == 0:
+            # Nothing stands out against the whole border's spread: neighbours
+            # reaching into a crop may have widened it. Try most stretches' spread.
+            z = _robust_z(flat, stat_ground, config.min_contrast / config.z_detect, local=True)
+            found = _best_regions(z, config, min_area, all_rocks or not last, split=last)
         if found is None:
             return None
         outliers = np.abs(z) > config.z_grow
@@ -1019,7 +1037,7 @@ def _best_regions(
         return None
     alternatives.sort(key=lambda a: -a[0])
     # The chosen region first among the alternatives: whole, before any cut.
-    return (*best, [(region, polarity) for _, region, polarity in alternatives])
+    return (*best, alternatives)
 
 
 def _region_scores(signed: NDArray[np.float32], regions: list[NDArray[np.bool_]]) -> NDArray[np.float64]:
