@@ -347,7 +347,7 @@ def segment(
     outline = _Outliner(
         levels, arr.dtype, small.shape[:2], detect_covered, detect_scale, largest_scale, config
     )
-    best: tuple[float, Segmentation] | None = None
+    best: tuple[float, Segmentation, float] | None = None
     for channel in _channels(small):
         detection = _detect(channel.values(small), channel, config, all_rocks)
         if detection is None:
@@ -361,24 +361,25 @@ def segment(
             found = outline(candidate)
             if found is None:
                 continue
-            key = _choice_key(found, best[1] if best else None)
+            key = _choice_key(found, candidate.score)
             if best is None or key > best[0]:
-                best = (key, found)
+                best = (key, found, candidate.score)
             # Fast path: an outline the photo clearly supports, of a rock that
             # stood out clearly from every other region, needs no rival.
             if best[1].rocks[0].score >= FAST_SCORE and _unrivalled(detection):
                 return best[1]
     if best is None:
         raise NoRockFoundError("no rock found: nothing stands out from the ground")
-    for found in outline.refined(best[1]):
-        key = _choice_key(found, best[1])
+    _, incumbent, detection_score = best
+    for found in outline.refined(incumbent):
+        key = _choice_key(found, detection_score)
         if key > best[0]:
-            best = (key, found)
+            best = (key, found, detection_score)
     return best[1]
 
 
 #: A main rock's segmentation score from which no other candidate is tried (the fast path).
-FAST_SCORE = 0.9
+FAST_SCORE = 0.95
 
 
 def _unrivalled(detection: _Detection) -> bool:
@@ -397,11 +398,11 @@ def _candidates(detection: _Detection) -> Iterator[_Detection]:
     """The detection's main rock, then its alternatives (whole regions, runners-up, the other polarity)."""
     yield detection
     seen = [detection.regions[0]]
-    for _, region, polarity in detection.alternatives:
+    for score, region, polarity in detection.alternatives:
         if any(_overlap(region, other) > 0.9 for other in seen):
             continue
         seen.append(region)
-        yield dataclasses.replace(detection, regions=[region], polarity=polarity, others=[])
+        yield dataclasses.replace(detection, score=score, regions=[region], polarity=polarity, others=[])
 
 
 def _overlap(a: NDArray[np.bool_], b: NDArray[np.bool_]) -> float:
@@ -410,19 +411,18 @@ def _overlap(a: NDArray[np.bool_], b: NDArray[np.bool_]) -> float:
     return float((a & b).sum()) / union if union else 0.0
 
 
-def _choice_key(found: Segmentation, incumbent: Segmentation | None) -> float:
-    """Rank of a candidate main rock: its segmentation score, a little for its size.
+def _choice_key(found: Segmentation, detection_score: float) -> float:
+    """Rank of a candidate main rock: its segmentation score, a little for how it was detected.
 
     A pebble or a highlight can be outlined as crisply as the rock it lies
-    on or by; of outlines about as well supported, the larger wins.
+    on or by: of outlines about as well supported, the one whose region
+    stood out more (larger, clearer, off the frame, nearer the centre) wins.
     """
-    rock = found.rocks[0]
-    area = rock.area * found.scale_rowcol[0] * found.scale_rowcol[1]
-    return rock.score * area**_SIZE_WEIGHT
+    return found.rocks[0].score * max(detection_score, 0.0) ** _DETECTION_WEIGHT
 
 
-#: Exponent of a candidate's area in its rank (a tenth of the area costs a quarter of the score).
-_SIZE_WEIGHT = 0.125
+#: Exponent of a candidate's detection score in its rank (a tenth of it costs a quarter of the rank).
+_DETECTION_WEIGHT = 0.125
 
 
 @dataclass(frozen=True, eq=False)
