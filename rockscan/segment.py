@@ -552,6 +552,9 @@ def _grabcut(work: NDArray[np.generic], dtype: np.dtype, rock: RockMask) -> NDAr
         window = np.repeat(window[..., None], 3, axis=2)
     image = np.ascontiguousarray((window * 255).astype(np.uint8))
     bgd, fgd = np.zeros((1, 65), np.float64), np.zeros((1, 65), np.float64)
+    # GrabCut starts its colour models by k-means from OpenCV's random state:
+    # seeded, the same photo gives the same outline every time.
+    cv2.setRNGSeed(0)
     try:
         cv2.grabCut(image, trimap, None, bgd, fgd, _GRABCUT_ITERATIONS, cv2.GC_INIT_WITH_MASK)
     except cv2.error:
@@ -1003,6 +1006,13 @@ def _best_regions(
             # A crop is centred on its rock: the region under the centre competes too.
             ranked += [i for i, r in enumerate(regions) if r[rows // 2, cols // 2] and i not in ranked]
             alternatives.extend((float(scores[i]), regions[i], polarity) for i in ranked)
+            if total > 0:
+                # The main rock's whole region, before it was split: texture on a
+                # rock can look like a dip between two.
+                ys, xs = np.nonzero(regions[main])
+                whole = labels == labels[ys[0], xs[0]]
+                if whole.sum() > 1.2 * ys.size:
+                    alternatives.append((total, whole, polarity))
         if total <= 0 or (best is not None and total <= best[0]):
             continue
         areas_r = np.array([float(r.sum()) for r in regions])
