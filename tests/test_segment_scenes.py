@@ -51,7 +51,8 @@ def test_most_one_rock_photos_are_outlined_at_iou_09(one_rock_scores):
 
 def test_a_crop_is_outlined_around_the_rock_it_is_centred_on():
     scores = [judged("crop-neighbours", i) for i in range(3)]
-    assert sum(s.iou >= 0.9 for s in scores) >= 1, [round(s.iou, 2) for s in scores]
+    # Crops are the hardest condition (see docs/segment-algorithm.md): most, not all.
+    assert sum(s.iou >= 0.75 for s in scores) >= 2, [round(s.iou, 2) for s in scores]
     assert all(not s.no_rock for s in scores)
 
 
