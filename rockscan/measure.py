@@ -1,4 +1,4 @@
-"""A found rock measured for reports: its outline as a polygon, second moments, sizes, contrast.
+"""A found rock measured for reports: its outline as a polygon, second moments and sizes.
 
 The traced outline (:mod:`rockscan.outline`) has a vertex on every edge of the
 working image's pixel grid, thousands for a large rock. Reports carry a
@@ -30,7 +30,6 @@ from rockscan.errors import ParameterError
 
 __all__ = [
     "OutlineSizes",
-    "contrast_score",
     "outline_sizes",
     "polygon_moments",
     "report_outline_xy",
@@ -183,65 +182,3 @@ def outline_sizes(xy: ArrayLike, px_per_mm: float) -> OutlineSizes:
         major_axis_mm=4.0 * float(np.sqrt(high)) * mm,
         minor_axis_mm=4.0 * float(np.sqrt(low)) * mm,
     )
-
-
-def contrast_score(image: NDArray[np.floating], mask: NDArray[np.bool_]) -> float:
-    """How clearly a rock stands out from the ground just around it, in [0, 1].
-
-    Parameters
-    ----------
-    image : (rows, cols) or (rows, cols, channels) ndarray of float
-        The photo at the mask's resolution, any value range.
-    mask : (rows, cols) ndarray of bool
-        The rock.
-
-    Returns
-    -------
-    score : float
-        ``z**2 / (z**2 + 9)`` for the largest, over channels, of the difference
-        of the medians inside the rock and in a ring of ground around it, in
-        robust standard deviations of the two (median absolute deviations,
-        pooled): 0.5 at a contrast of 3 standard deviations, 0.9 at 9.
-
-    Notes
-    -----
-    A provisional confidence that the outline is the rock's, not calibrated
-    against outcomes: a rock barely different from its ground is the likeliest
-    to be outlined wrong. One pixel each side of the edge is left out (the
-    blurred edge itself), and the ring is a tenth of the rock's equivalent
-    radius wide (at least two pixels).
-    """
-    import cv2
-
-    mask = np.asarray(mask, dtype=bool)
-    img = np.asarray(image, dtype=np.float32)
-    if img.ndim == 2:
-        img = img[:, :, None]
-    if img.shape[:2] != mask.shape:
-        raise ParameterError(f"image {img.shape[:2]} and mask {mask.shape} differ in size")
-    if not mask.any():
-        return 0.0
-    width = max(2, round(0.1 * np.sqrt(mask.sum() / np.pi)))
-    m8 = mask.astype(np.uint8)
-    inner = cv2.erode(m8, _disk(1)).astype(bool)
-    near = cv2.dilate(m8, _disk(1)).astype(bool)
-    ring = cv2.dilate(m8, _disk(1 + width)).astype(bool) & ~near
-    if not inner.any():
-        inner = mask
-    if not ring.any():
-        return 0.0
-    z = 0.0
-    for c in range(img.shape[2]):
-        rock, ground = img[:, :, c][inner], img[:, :, c][ring]
-        mr, mg = np.median(rock), np.median(ground)
-        spread = 1.4826 * np.hypot(np.median(np.abs(rock - mr)), np.median(np.abs(ground - mg)))
-        # A floor on the spread: a noiseless rendered photo is clear, not infinitely so.
-        floor = 1e-3 * max(float(np.abs(img[:, :, c]).max()), 1e-6)
-        z = max(z, float(abs(mr - mg) / max(spread, floor)))
-    return z * z / (z * z + 9.0)
-
-
-def _disk(radius: int) -> NDArray[np.uint8]:
-    import cv2
-
-    return cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * radius + 1, 2 * radius + 1))

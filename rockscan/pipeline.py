@@ -6,6 +6,7 @@ prints: the command line formats what they return.
 
 from __future__ import annotations
 
+import dataclasses
 import logging
 import math
 import os
@@ -21,7 +22,7 @@ from rockscan.errors import ParameterError, RockscanError
 from rockscan.match import Match, MatchConfig, match_radii
 from rockscan.outline import Outline, trace_outline
 from rockscan.polar import contour_radii
-from rockscan.segment import Segmentation, SegmentConfig, segment
+from rockscan.segment import CONFIDENT_SCORE, Segmentation, SegmentConfig, segment
 
 if TYPE_CHECKING:
     from rockscan.information import FaceConfig
@@ -81,10 +82,10 @@ class RockResult:
     radii : (n_angles,) ndarray of float
         Radii about the centroid, in photo pixels.
     match : Match
-    contrast_score : float, optional
-        How clearly the rock stands out from the ground around it, in [0, 1]
-        (:func:`rockscan.measure.contrast_score`); the record's
-        ``segmentation_score`` when no calibrated score is at hand.
+    segmentation_score : float
+        How well the photo supports the outline, in [0, 1] (see
+        :attr:`rockscan.segment.RockMask.score`); below
+        :data:`rockscan.segment.CONFIDENT_SCORE` the rock is never interesting.
     px_per_mm : float, optional
         Photo pixels per millimetre: the record then carries sizes in mm.
     """
@@ -93,7 +94,7 @@ class RockResult:
     outline: Outline
     radii: NDArray[np.float64]
     match: Match
-    contrast_score: float | None = None
+    segmentation_score: float = 1.0
     px_per_mm: float | None = None
 
     @property
@@ -114,24 +115,20 @@ class RockResult:
         """Interface keys for this rock (without ``path``).
 
         ``outline`` is :attr:`outline_xy` to 0.01 px; ``area_px`` and ``centroid``
-        are those of the traced outline. ``segmentation_score`` is a calibrated
-        score where the result has one, else :attr:`contrast_score`. With
+        are those of the traced outline. ``segmentation_score`` is the
+        segmenter's calibrated score of the outline. With
         ``px_per_mm``, the sizes of :func:`rockscan.measure.outline_sizes` of
         the traced outline (so that ``area_mm2 = area_px / px_per_mm**2``).
         """
         from rockscan.measure import outline_sizes
 
         xy = self.outline_xy
-        score = getattr(self, "segmentation_score", None)
-        if score is None:
-            score = self.contrast_score
         record: dict[str, object] = {
             **self.match.to_dict(),
             "centroid": [round(self.centroid_xy[0], 3), round(self.centroid_xy[1], 3)],
             "index": self.index,
             "area_px": round(self.outline.area_px, 1),
-            # Unknown (a result made without its photo) is reported as no confidence.
-            "segmentation_score": round(float(np.clip(score, 0.0, 1.0)), 4) if score is not None else 0.0,
+            "segmentation_score": round(float(np.clip(self.segmentation_score, 0.0, 1.0)), 4),
             "outline": np.round(xy, 2).tolist(),
         }
         if self.px_per_mm is not None:
@@ -241,34 +238,16 @@ def classify_image(
     seg, rocks = measure_rocks(
         pixels, library.face_config.n_angles, config.segment, all_rocks=all_rocks, scale=scale
     )
-    scores = _contrast_scores(pixels, seg)
-    return [
-        RockResult(
-            index=i,
-            outline=outline,
-            radii=radii,
-            match=match_radii(radii, library, config.match),
-            contrast_score=scores[i],
-            px_per_mm=config.px_per_mm,
+    results = []
+    for i, ((outline, radii), rock) in enumerate(zip(rocks, seg.rocks, strict=True)):
+        match = match_radii(radii, library, config.match)
+        if rock.score < CONFIDENT_SCORE and match.interesting:
+            # A shape read from an outline the photo does not support is no finding.
+            match = dataclasses.replace(match, interesting=False, match=None)
+        results.append(
+            RockResult(i, outline, radii, match, segmentation_score=rock.score, px_per_mm=config.px_per_mm)
         )
-        for i, (outline, radii) in enumerate(rocks)
-    ]
-
-
-def _contrast_scores(pixels: NDArray[np.generic], seg: Segmentation) -> list[float]:
-    """Each rock's :func:`rockscan.measure.contrast_score`, on the photo at working size."""
-    import cv2
-
-    from rockscan.measure import contrast_score
-
-    arr = np.asarray(pixels)
-    if arr.dtype not in (np.uint8, np.uint16, np.float32, np.float64):
-        arr = arr.astype(np.float32)
-    rows, cols = seg.labels.shape
-    # The working image covers the photo's first rows * scale rows (and so for columns).
-    covered = arr[: round(rows * seg.scale_rowcol[0]), : round(cols * seg.scale_rowcol[1])]
-    work = cv2.resize(covered, (cols, rows), interpolation=cv2.INTER_AREA).astype(np.float32)
-    return [contrast_score(work, seg.labels == k + 1) for k in range(seg.n_rocks)]
+    return results
 
 
 def classify_path(

@@ -81,6 +81,7 @@ rock cut by the frame's border is outlined along the border.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from collections.abc import Iterator
 from dataclasses import dataclass
@@ -89,10 +90,17 @@ import numpy as np
 from numpy.typing import NDArray
 
 from rockscan._choices import POLARITIES
+from rockscan._seg_score import outline_evidence, outline_score
+from rockscan._seg_split import split_necks, split_rocks, territories
 from rockscan._threads import one_blas_thread
 from rockscan.errors import NoRockFoundError, ParameterError
 
-__all__ = ["RockMask", "SegmentConfig", "Segmentation", "segment", "to_gray"]
+__all__ = ["CONFIDENT_SCORE", "RockMask", "SegmentConfig", "Segmentation", "segment", "to_gray"]
+
+#: Segmentation score below which an outline is not trusted: such a rock is
+#: never reported as interesting (calibrated on the segmentation benchmark's
+#: development part, see docs/segmentation.md).
+CONFIDENT_SCORE = 0.5
 
 
 @dataclass(frozen=True)
@@ -205,11 +213,22 @@ class RockMask:
         level is the outline, between pixels.
     origin_rowcol : (int, int)
         The window's top-left pixel in the working image.
+    score : float
+        Segmentation score in [0, 1]: how well the photo supports this
+        outline (a step from the rock's level to the ground's all round it,
+        rock inside, ground outside, off the frame, solid; see
+        ``rockscan._seg_score``). Low means a likely wrong outline; below
+        :data:`CONFIDENT_SCORE` the outline is not to be trusted.
+    evidence : tuple of float
+        The measurements the score is computed from (support, weak, outside,
+        noise, frame, solidity).
     """
 
     mask: NDArray[np.bool_]
     coverage: NDArray[np.float32]
     origin_rowcol: tuple[int, int]
+    score: float = 1.0
+    evidence: tuple[float, ...] = ()
 
     @property
     def area(self) -> int:
@@ -327,52 +346,250 @@ def segment(
     levels = _pyramid(color, config.detect_size)
     small, detect_covered = _at_scale(levels, detect_scale)
     small = _unit(small, arr.dtype)
-    best: _Detection | None = None
+    outline = _Outliner(
+        levels, arr.dtype, small.shape[:2], detect_covered, detect_scale, largest_scale, config
+    )
+    best: tuple[float, Segmentation, float] | None = None
     for channel in _channels(small):
-        best = _detect(channel.values(small), channel, config, all_rocks)
-        if best is not None:
-            break
+        detection = _detect(channel.values(small), channel, config, all_rocks)
+        if detection is None:
+            continue
+        if all_rocks:
+            found = outline(detection)
+            if found is not None:
+                return found
+            continue
+        for candidate in _candidates(detection):
+            found = outline(candidate)
+            if found is None:
+                continue
+            key = _choice_key(found, candidate.score)
+            if best is None or key > best[0]:
+                best = (key, found, candidate.score)
+            # Fast path: an outline the photo clearly supports, of a rock that
+            # stood out clearly from every other region, needs no rival.
+            if best[1].rocks[0].score >= FAST_SCORE and _unrivalled(detection):
+                return best[1]
     if best is None:
         raise NoRockFoundError("no rock found: nothing stands out from the ground")
+    _, incumbent, detection_score = best
+    for found in outline.refined(incumbent):
+        key = _choice_key(found, detection_score)
+        if key > best[0]:
+            best = (key, found, detection_score)
+    return best[1]
 
-    # Outline on an image where the smallest rock found spans about
-    # outline_radius pixels: finer costs time and adds nothing to its shape.
-    smallest = min(int(r.sum()) for r in best.regions)
-    radius_photo = math.sqrt(smallest / math.pi) * detect_scale
-    work_scale = min(max(largest_scale, radius_photo / config.outline_radius), detect_scale)
-    work, covered = _at_scale(levels, work_scale)
-    scale_rowcol = (covered[0] / work.shape[0], covered[1] / work.shape[1])
-    work_size = (work.shape[1], work.shape[0])
 
-    # Working pixels per detection pixel, each image over the photo pixels it covers.
-    up = (
-        detect_covered[0] / small.shape[0] / scale_rowcol[0],
-        detect_covered[1] / small.shape[1] / scale_rowcol[1],
-    )
-    rocks = []
-    for region in best.regions:
-        rock = _outline_rock(work, arr.dtype, region, up, best, config)
-        if rock is not None:
-            rocks.append(rock)
-    if not rocks:
-        raise NoRockFoundError("no rock found: nothing stands out from the ground")
-    polarity = best.polarity
-    if best.channel.name != "luminance":
-        polarity = _luminance_polarity(work, arr.dtype, rocks[0])
-    rocks.sort(key=lambda r: -r.area)
-    labels = np.zeros((work_size[1], work_size[0]), np.int32)
+#: A main rock's segmentation score from which no other candidate is tried (the fast path).
+FAST_SCORE = 0.95
+
+
+def _unrivalled(detection: _Detection) -> bool:
+    """Whether the main region's detection score is far above every other region's."""
+    rivals = [
+        score for score, region, _ in detection.alternatives if _overlap(region, detection.regions[0]) < 0.5
+    ]
+    return not rivals or max(rivals) <= _RIVAL_SHARE * detection.score
+
+
+#: Share of the main region's detection score that a rival must stay under for the fast path.
+_RIVAL_SHARE = 0.25
+
+
+def _candidates(detection: _Detection) -> Iterator[_Detection]:
+    """The detection's main rock, then its alternatives (whole regions, runners-up, the other polarity)."""
+    yield detection
+    seen = [detection.regions[0]]
+    for score, region, polarity in detection.alternatives:
+        if any(_overlap(region, other) > 0.9 for other in seen):
+            continue
+        seen.append(region)
+        yield dataclasses.replace(detection, score=score, regions=[region], polarity=polarity, others=[])
+
+
+def _overlap(a: NDArray[np.bool_], b: NDArray[np.bool_]) -> float:
+    """Intersection over union of two masks."""
+    union = int((a | b).sum())
+    return float((a & b).sum()) / union if union else 0.0
+
+
+def _choice_key(found: Segmentation, detection_score: float) -> float:
+    """Rank of a candidate main rock: its segmentation score, a little for how it was detected.
+
+    A pebble or a highlight can be outlined as crisply as the rock it lies
+    on or by: of outlines about as well supported, the one whose region
+    stood out more (larger, clearer, off the frame, nearer the centre) wins.
+    """
+    return found.rocks[0].score * max(detection_score, 0.0) ** _DETECTION_WEIGHT
+
+
+#: Exponent of a candidate's detection score in its rank (a tenth of it costs a quarter of the rank).
+_DETECTION_WEIGHT = 0.125
+
+
+@dataclass(frozen=True, eq=False)
+class _Outliner:
+    """Outlines a detection's rocks at working size (module docstring, step 6) and scores them."""
+
+    levels: list[NDArray[np.generic]]
+    dtype: np.dtype
+    small_shape: tuple[int, int]
+    detect_covered: tuple[float, float]
+    detect_scale: float
+    largest_scale: float
+    config: SegmentConfig
+    #: The working image, its scale and the detection of each segmentation made.
+    works: dict = dataclasses.field(default_factory=dict)
+
+    def __call__(self, detection: _Detection) -> Segmentation | None:
+        config = self.config
+        # Outline on an image where the smallest rock found spans about
+        # outline_radius pixels: finer costs time and adds nothing to its shape.
+        smallest = min(int(r.sum()) for r in detection.regions)
+        radius_photo = math.sqrt(smallest / math.pi) * self.detect_scale
+        work_scale = min(max(self.largest_scale, radius_photo / config.outline_radius), self.detect_scale)
+        work, covered = _at_scale(self.levels, work_scale)
+        scale_rowcol = (covered[0] / work.shape[0], covered[1] / work.shape[1])
+        # Working pixels per detection pixel, each image over the photo pixels it covers.
+        up = (
+            self.detect_covered[0] / self.small_shape[0] / scale_rowcol[0],
+            self.detect_covered[1] / self.small_shape[1] / scale_rowcol[1],
+        )
+        rocks = []
+        # Neighbours that are no rock of their own still bound a rock's territory.
+        owners = territories(detection.regions + detection.others)
+        for index, region in enumerate(detection.regions, start=1):
+            rock = _outline_rock(work, self.dtype, region, owners == index, up, detection, config)
+            if rock is not None:
+                rocks.append(rock)
+        if not rocks:
+            return None
+        polarity = detection.polarity
+        if detection.channel.name != "luminance":
+            polarity = _luminance_polarity(work, self.dtype, rocks[0])
+        found = _assemble(rocks, work.shape[:2], scale_rowcol, polarity, detection.channel.name)
+        self.works[id(found)] = (work, up, detection)
+        return found
+
+    def refined(self, found: Segmentation) -> Iterator[Segmentation]:
+        """Other outlines of a found main rock: GrabCut from it, and the Otsu part under the centre."""
+        work, up, detection = self.works[id(found)]
+        rock = found.rocks[0]
+        to_row = np.minimum(
+            ((np.arange(work.shape[0]) + 0.5) / up[0]).astype(np.int64), self.small_shape[0] - 1
+        )
+        to_col = np.minimum(
+            ((np.arange(work.shape[1]) + 0.5) / up[1]).astype(np.int64), self.small_shape[1] - 1
+        )
+        for mask in (_grabcut(work, self.dtype, rock), _centre_part(work, self.dtype)):
+            if mask is None or not mask.any():
+                continue
+            candidate = RockMask(mask=mask, coverage=mask.astype(np.float32), origin_rowcol=(0, 0))
+            candidate = _cropped(
+                _scored(work, self.dtype, candidate, (to_row, to_col), up, detection, self.config)
+            )
+            yield _assemble([candidate], work.shape[:2], found.scale_rowcol, found.polarity, found.channel)
+
+
+def _assemble(
+    rocks: list[RockMask],
+    shape: tuple[int, int],
+    scale_rowcol: tuple[float, float],
+    polarity: str,
+    channel: str,
+) -> Segmentation:
+    """A segmentation of outlined rocks, by decreasing area."""
+    rocks = sorted(rocks, key=lambda r: -r.area)
+    labels = np.zeros(shape, np.int32)
     for index, rock in enumerate(rocks, start=1):
         r0, c0 = rock.origin_rowcol
         h, w = rock.mask.shape
         view = labels[r0 : r0 + h, c0 : c0 + w]
         view[rock.mask & (view == 0)] = index
     return Segmentation(
-        labels=labels,
-        rocks=tuple(rocks),
-        scale_rowcol=scale_rowcol,
-        polarity=polarity,
-        channel=best.channel.name,
+        labels=labels, rocks=tuple(rocks), scale_rowcol=scale_rowcol, polarity=polarity, channel=channel
     )
+
+
+def _cropped(rock: RockMask) -> RockMask:
+    """The rock in the smallest window that holds it, with a pixel to spare."""
+    ys, xs = np.nonzero(rock.mask)
+    r0, r1 = max(0, ys.min() - 1), min(rock.mask.shape[0], ys.max() + 2)
+    c0, c1 = max(0, xs.min() - 1), min(rock.mask.shape[1], xs.max() + 2)
+    o0, o1 = rock.origin_rowcol
+    return dataclasses.replace(
+        rock,
+        mask=rock.mask[r0:r1, c0:c1],
+        coverage=rock.coverage[r0:r1, c0:c1],
+        origin_rowcol=(o0 + int(r0), o1 + int(c0)),
+    )
+
+
+def _grabcut(work: NDArray[np.generic], dtype: np.dtype, rock: RockMask) -> NDArray[np.bool_] | None:
+    """OpenCV's GrabCut (colour models of rock and ground, cut along edges) started from an outline.
+
+    Pixels well inside the outline are rock, well outside ground, the band
+    between undecided. Returns the rock over the whole working image.
+    """
+    import cv2
+
+    rows, cols = work.shape[:2]
+    r0, c0 = rock.origin_rowcol
+    h, w = rock.mask.shape
+    radius = math.sqrt(max(rock.area, 1) / math.pi)
+    pad = round(max(8.0, 0.6 * radius))
+    R0, R1, C0, C1 = max(0, r0 - pad), min(rows, r0 + h + pad), max(0, c0 - pad), min(cols, c0 + w + pad)
+    m = np.zeros((R1 - R0, C1 - C0), np.uint8)
+    m[r0 - R0 : r0 - R0 + h, c0 - C0 : c0 - C0 + w] = rock.mask
+    disk = _disk(max(2, round(0.25 * radius)))
+    trimap = np.full(m.shape, cv2.GC_BGD, np.uint8)
+    trimap[cv2.dilate(m, disk) > 0] = cv2.GC_PR_BGD
+    trimap[m > 0] = cv2.GC_PR_FGD
+    sure = cv2.erode(m, disk) > 0
+    if not sure.any():
+        return None
+    trimap[sure] = cv2.GC_FGD
+    window = _unit(np.ascontiguousarray(work[R0:R1, C0:C1]), dtype)
+    if window.ndim == 2:
+        window = np.repeat(window[..., None], 3, axis=2)
+    image = np.ascontiguousarray((window * 255).astype(np.uint8))
+    bgd, fgd = np.zeros((1, 65), np.float64), np.zeros((1, 65), np.float64)
+    # GrabCut starts its colour models by k-means from OpenCV's random state:
+    # seeded, the same photo gives the same outline every time.
+    cv2.setRNGSeed(0)
+    try:
+        cv2.grabCut(image, trimap, None, bgd, fgd, _GRABCUT_ITERATIONS, cv2.GC_INIT_WITH_MASK)
+    except cv2.error:
+        return None
+    fg = ((trimap == cv2.GC_FGD) | (trimap == cv2.GC_PR_FGD)).astype(np.uint8)
+    count, labels = cv2.connectedComponents(fg, connectivity=4)
+    overlap = np.bincount(labels[sure], minlength=count)
+    overlap[0] = 0
+    out = np.zeros((rows, cols), bool)
+    out[R0:R1, C0:C1] = _fill_holes(labels == int(np.argmax(overlap)))
+    return out
+
+
+#: GrabCut's rounds of colour models and cut.
+_GRABCUT_ITERATIONS = 3
+
+
+def _centre_part(work: NDArray[np.generic], dtype: np.dtype) -> NDArray[np.bool_] | None:
+    """The Otsu class under the frame's centre, holes filled, cut at necks from touching neighbours."""
+    import cv2
+
+    gray = to_gray(work) if work.ndim == 3 else _unit(work, dtype)
+    gray8 = cv2.GaussianBlur((gray * 255).astype(np.uint8), (5, 5), 0)
+    _, binary = cv2.threshold(gray8, 0, 1, cv2.THRESH_BINARY + cv2.THRESH_OTSU)
+    rows, cols = binary.shape
+    if not binary[rows // 2, cols // 2]:
+        binary = 1 - binary
+    _, labels = cv2.connectedComponents(binary, connectivity=4)
+    region = _fill_holes(labels == labels[rows // 2, cols // 2])
+    for part in split_necks(region, 0.01 * rows * cols):
+        if part[rows // 2, cols // 2]:
+            return part
+    return region
 
 
 # ---------------------------------------------------------------- input and channels
@@ -511,6 +728,10 @@ class _Detection:
     lighting: NDArray[np.float32]
     channel: _Channel
     outliers: NDArray[np.bool_]
+    #: Every other rock-like region of the rocks' polarity (neighbours in a crop).
+    others: list[NDArray[np.bool_]]
+    #: Regions that might be the main rock instead: (score, region, polarity), best first.
+    alternatives: list[tuple[float, NDArray[np.bool_], str]]
 
 
 def _poly_terms(rows_norm: NDArray[np.float64], cols_norm: NDArray[np.float64], degree: int) -> list:
@@ -664,7 +885,14 @@ def _detect(
         # min_contrast from it, so that noise and JPEG blocks are no rock.
         z = _robust_z(flat, stat_ground, config.min_contrast / config.z_detect)
         last = round_ == config.iterations
-        found = _best_regions(z, config, min_area, all_rocks, split=last)
+        # Before the last round every rock counts, not only the main one: a
+        # neighbour intruding into a crop is no ground for the next round.
+        found = _best_regions(z, config, min_area, all_rocks or not last, split=last)
+        if found is None and round_ == 0:
+            # Nothing stands out against the whole border's spread: neighbours
+            # reaching into a crop may have widened it. Try most stretches' spread.
+            z = _robust_z(flat, stat_ground, config.min_contrast / config.z_detect, local=True)
+            found = _best_regions(z, config, min_area, all_rocks or not last, split=last)
         if found is None:
             return None
         outliers = np.abs(z) > config.z_grow
@@ -680,8 +908,8 @@ def _detect(
             break
         stat_ground = ~rocks
         fit_ground = ~(rocks | far) if (~(rocks | far)).mean() >= 0.1 else stat_ground
-    score, regions, polarity = found
-    return _Detection(score, regions, polarity, lighting, channel, outliers)
+    score, regions, polarity, others, alternatives = found
+    return _Detection(score, regions, polarity, lighting, channel, outliers, others, alternatives)
 
 
 def _luminance_polarity(work: NDArray[np.generic], dtype: np.dtype, rock: RockMask) -> str:
@@ -695,15 +923,36 @@ def _luminance_polarity(work: NDArray[np.generic], dtype: np.dtype, rock: RockMa
     return "light" if float(np.median(lum[rock.mask])) > float(np.median(outside)) else "dark"
 
 
-def _robust_z(flat: NDArray[np.float32], ground: NDArray[np.bool_], floor: float) -> NDArray[np.float32]:
-    """Deviation from the ground in robust standard deviations (median, MAD, at least ``floor``)."""
+def _robust_z(
+    flat: NDArray[np.float32], ground: NDArray[np.bool_], floor: float, *, local: bool = False
+) -> NDArray[np.float32]:
+    """Deviation from the ground in robust standard deviations (median, MAD, at least ``floor``;
+    with ``local``, at most the typical spread of the ground's stretches)."""
     values = flat[ground] if ground.sum() > 50 else flat.ravel()
     # Every fourth value gives the same statistics at a quarter of the cost.
     values = values[::4] if values.size > 4000 else values
     median = float(np.median(values))
     mad = float(np.median(np.abs(values - median))) * 1.4826
+    if local:
+        # Neighbours reaching into the frame's border (a crop) widen the MAD
+        # of the whole band; the ground's own spread is that of most of its
+        # stretches, each about even.
+        mad = min(mad, _stretch_spread(flat, ground))
     spread = max(mad, floor, 1e-6)
     return ((flat - median) / spread).astype(np.float32)
+
+
+def _stretch_spread(flat: NDArray[np.float32], ground: NDArray[np.bool_]) -> float:
+    """Median over an 8 x 8 grid of the frame of the ground's robust spread in each cell."""
+    rows, cols = flat.shape
+    spreads = []
+    for r in range(8):
+        for c in range(8):
+            cell = (slice(r * rows // 8, (r + 1) * rows // 8), slice(c * cols // 8, (c + 1) * cols // 8))
+            values = flat[cell][ground[cell]]
+            if values.size >= 12:
+                spreads.append(1.4826 * float(np.median(np.abs(values - np.median(values)))))
+    return float(np.median(spreads)) if len(spreads) >= 4 else math.inf
 
 
 #: Contrast beyond which a pixel counts no more toward its region's edge step,
@@ -713,15 +962,14 @@ _Z_CAP = 30.0
 
 def _best_regions(
     z: NDArray[np.float32], config: SegmentConfig, min_area: float, all_rocks: bool, *, split: bool = True
-) -> tuple[float, list[NDArray[np.bool_]], str] | None:
-    """Score of the main rock, the rock regions and their polarity (module docstring, steps 4-5)."""
+) -> tuple[float, list[NDArray[np.bool_]], str, list[NDArray[np.bool_]], list] | None:
+    """Score of the main rock, the rock regions, their polarity and the other candidate regions
+    (module docstring, steps 4-5), and the alternatives for the main rock, best first."""
     import cv2
 
     rows, cols = z.shape
     best = None
-    band = np.ones((5, 5), np.uint8)
-    edge = np.zeros((rows, cols), bool)
-    edge[0], edge[-1], edge[:, 0], edge[:, -1] = True, True, True, True
+    alternatives: list[tuple[float, NDArray[np.bool_], str]] = []
     polarities = ("light", "dark") if config.polarity == "auto" else (config.polarity,)
     for polarity in polarities:
         signed = z if polarity == "light" else -z
@@ -731,49 +979,53 @@ def _best_regions(
         if count <= 1:
             continue
         seeded = np.bincount(labels[signed > config.z_detect], minlength=count)[1:] > 0
-        areas = stats[1:, cv2.CC_STAT_AREA].astype(np.float64)
-        usable = seeded & (areas >= min_area)
-        if not usable.any():
+        areas = stats[1:, cv2.CC_STAT_AREA]
+        usable = np.flatnonzero(seeded & (areas >= min_area)) + 1
+        if usable.size == 0:
             continue
-        # Edge step: mean contrast just inside a region less just outside it.
-        # A rock's edge is a step as high as its contrast; a blob of texture
-        # fades out and barely steps at its edge.
-        inner = (candidate - cv2.erode(candidate, band)).astype(bool)
-        outer_labels = cv2.dilate(labels.astype(np.float32), band).astype(np.int64)
-        outer = (labels == 0) & (outer_labels > 0)
-        clipped = np.minimum(signed, _Z_CAP)
-        inner_n = np.bincount(labels[inner], minlength=count)[1:]
-        inner_sum = np.bincount(labels[inner], weights=clipped[inner], minlength=count)[1:]
-        outer_n = np.bincount(outer_labels[outer], minlength=count)[1:]
-        outer_sum = np.bincount(outer_labels[outer], weights=clipped[outer], minlength=count)[1:]
-        step = inner_sum / np.maximum(inner_n, 1) - outer_sum / np.maximum(outer_n, 1)
-        # The share of a region's edge that is the frame's edge: a rock lies
-        # inside the frame, the ground (or a lighting residue) runs along it.
-        # The inner band is two pixels wide: half its count is the perimeter.
-        perimeter = np.maximum(inner_n / 2.0, 1.0)
-        on_edge = np.bincount(labels[edge], minlength=count)[1:]
-        share = np.clip(on_edge / perimeter, 0.0, 1.0)
-        # Rocks are solid; the ground between several rocks, or a blob of
-        # texture, has a long ragged edge for its area (1 for a disc).
-        compactness = np.minimum(4.0 * np.pi * areas / perimeter**2, 1.0)
-        scores = areas * np.maximum(step, 0.0) * compactness * (1.0 - share) ** 2
-        scores = np.where(usable, scores, -1.0)
+        if split:
+            # Touching rocks grow into one region: one region per rock (rockscan._seg_split).
+            regions = [
+                part
+                for i in usable
+                for part in split_rocks(signed, labels == i, min_area, config.z_grow)
+                if part.sum() >= min_area and (signed[part] > config.z_detect).any()
+            ]
+        else:
+            regions = [labels == i for i in usable]
+        if not regions:
+            continue
+        scores = _region_scores(signed, regions)
+        candidates = regions
+        if not all_rocks:
+            # A crop is centred on its rock: of two rocks alike, the nearer the centre.
+            scores = scores * _centre_weight(regions, (rows, cols))
         main = int(np.argmax(scores))
         total = float(scores[main])
+        if not all_rocks:
+            # Runners-up for the main rock, which the outline's own evidence may prefer.
+            ranked = [int(i) for i in np.argsort(-scores, kind="stable")[:_ALTERNATIVES] if scores[i] > 0]
+            # A crop is centred on its rock: the region under the centre competes too.
+            ranked += [i for i, r in enumerate(regions) if r[rows // 2, cols // 2] and i not in ranked]
+            alternatives.extend((float(scores[i]), regions[i], polarity) for i in ranked)
+            if total > 0:
+                # The main rock's whole region, before it was split: texture on a
+                # rock can look like a dip between two.
+                ys, xs = np.nonzero(regions[main])
+                whole = labels == labels[ys[0], xs[0]]
+                if whole.sum() > 1.2 * ys.size:
+                    alternatives.append((total, whole, polarity))
         if total <= 0 or (best is not None and total <= best[0]):
             continue
+        areas_r = np.array([float(r.sum()) for r in regions])
         if all_rocks:
             # Another rock stands out about as clearly as the main one; ground
             # texture that passes the thresholds scores far less.
-            keep = (
-                usable
-                & (scores >= _RELATIVE_SCORE * total)
-                & (areas >= config.min_relative_area * areas[main])
-            )
+            keep = (scores >= _RELATIVE_SCORE * total) & (areas_r >= config.min_relative_area * areas_r[main])
             regions = [
                 part
                 for i in np.flatnonzero(keep)
-                for part in (_split(labels == i + 1, signed, min_area) if split else [labels == i + 1])
+                for part in (_split(regions[i], signed, min_area) if split else [regions[i]])
             ]
             if not regions:
                 continue
@@ -781,10 +1033,86 @@ def _best_regions(
             regions = [r for r in regions if r.sum() >= config.min_relative_area * largest]
             regions.sort(key=lambda r: -int(r.sum()))
         else:
-            parts = _split(labels == main + 1, signed, min_area) if split else []
-            regions = [max(parts, key=lambda r: int(r.sum()))] if parts else [labels == main + 1]
-        best = (total, regions, polarity)
-    return best
+            parts = _split(regions[main], signed, min_area) if split else []
+            regions = [max(parts, key=lambda r: int(r.sum()))] if parts else [regions[main]]
+        # In a crop, the neighbours that would be rocks with --all.
+        others = [
+            candidates[i]
+            for i in range(len(candidates))
+            if i != main
+            and not all_rocks
+            and scores[i] >= _RELATIVE_SCORE * total
+            and candidates[i].sum() >= config.min_relative_area * candidates[main].sum()
+        ]
+        best = (total, regions, polarity, others)
+    if best is None:
+        return None
+    alternatives.sort(key=lambda a: -a[0])
+    # The chosen region first among the alternatives: whole, before any cut.
+    return (*best, alternatives)
+
+
+def _region_scores(signed: NDArray[np.float32], regions: list[NDArray[np.bool_]]) -> NDArray[np.float64]:
+    """How clearly each region stands out as a rock (module docstring, step 5).
+
+    Its area, times its edge step, times its compactness, times the square of
+    the share of its edge that does not run along the frame's.
+    """
+    import cv2
+
+    rows, cols = signed.shape
+    labels = np.zeros((rows, cols), np.int32)
+    for i, region in enumerate(regions, start=1):
+        labels[region & (labels == 0)] = i
+    count = len(regions) + 1
+    band = np.ones((5, 5), np.uint8)
+    as_float = labels.astype(np.float32)
+    # Edge step: mean contrast just inside a region less just outside it.
+    # A rock's edge is a step as high as its contrast; a blob of texture
+    # fades out and barely steps at its edge. Two touching rocks each have an
+    # edge along the cut between them.
+    inner = (labels > 0) & (
+        (cv2.erode(as_float, band) != as_float) | (cv2.dilate(as_float, band) != as_float)
+    )
+    outer_labels = cv2.dilate(as_float, band).astype(np.int64)
+    outer = (labels == 0) & (outer_labels > 0)
+    clipped = np.minimum(signed, _Z_CAP)
+    inner_n = np.bincount(labels[inner], minlength=count)[1:]
+    inner_sum = np.bincount(labels[inner], weights=clipped[inner], minlength=count)[1:]
+    outer_n = np.bincount(outer_labels[outer], minlength=count)[1:]
+    outer_sum = np.bincount(outer_labels[outer], weights=clipped[outer], minlength=count)[1:]
+    step = inner_sum / np.maximum(inner_n, 1) - outer_sum / np.maximum(outer_n, 1)
+    # The share of a region's edge that is the frame's edge: a rock lies
+    # inside the frame, the ground (or a lighting residue) runs along it.
+    # The inner band is two pixels wide: half its count is the perimeter.
+    edge = np.zeros((rows, cols), bool)
+    edge[0], edge[-1], edge[:, 0], edge[:, -1] = True, True, True, True
+    perimeter = np.maximum(inner_n / 2.0, 1.0)
+    on_edge = np.bincount(labels[edge], minlength=count)[1:]
+    share = np.clip(on_edge / perimeter, 0.0, 1.0)
+    # Rocks are solid; the ground between several rocks, or a blob of
+    # texture, has a long ragged edge for its area (1 for a disc).
+    areas = np.bincount(labels.ravel(), minlength=count)[1:].astype(np.float64)
+    compactness = np.minimum(4.0 * np.pi * areas / perimeter**2, 1.0)
+    return areas * np.maximum(step, 0.0) * compactness * (1.0 - share) ** 2
+
+
+def _centre_weight(regions: list[NDArray[np.bool_]], shape: tuple[int, int]) -> NDArray[np.float64]:
+    """1 at the frame's centre, falling to ``1 - _CENTRE_PRIOR`` at its corners (squared distance)."""
+    weights = []
+    for region in regions:
+        ys, xs = np.nonzero(region)
+        dy = (ys.mean() + 0.5) / shape[0] * 2.0 - 1.0
+        dx = (xs.mean() + 0.5) / shape[1] * 2.0 - 1.0
+        weights.append(1.0 - _CENTRE_PRIOR * 0.5 * (dy * dy + dx * dx))
+    return np.array(weights)
+
+
+#: Regions of each polarity that compete for the main rock.
+_ALTERNATIVES = 3
+
+#: How much a rock at a corner of the frame loses against one at its centre.
+_CENTRE_PRIOR = 0.3
 
 
 #: With several rocks, the smallest score of a rock as a fraction of the main rock's.
@@ -852,6 +1180,7 @@ def _outline_rock(
     work: NDArray[np.generic],
     dtype: np.dtype,
     region: NDArray[np.bool_],
+    territory: NDArray[np.bool_],
     up: tuple[float, float],
     detection: _Detection,
     config: SegmentConfig,
@@ -872,14 +1201,63 @@ def _outline_rock(
     # or has grown past four times the detection, has flooded the ground.
     for _ in range(3):
         rock, reaches_edge = _threshold_rock(
-            work, dtype, estimate, origin, (to_row, to_col), up, detection, config
+            work, dtype, estimate, origin, territory, (to_row, to_col), up, detection, config
         )
         if rock is None or not reaches_edge:
             break
         estimate, origin = rock.mask, rock.origin_rowcol
     if rock is None or reaches_edge or rock.area > 4.0 * float(detected.sum()):
-        return _fallback(detected, (r0, c0))
-    return rock
+        rock = _fallback(detected, (r0, c0))
+    if rock is None:
+        return None
+    return _scored(work, dtype, rock, (to_row, to_col), up, detection, config)
+
+
+def _scored(
+    work: NDArray[np.generic],
+    dtype: np.dtype,
+    rock: RockMask,
+    to_detect: tuple[NDArray[np.int64], NDArray[np.int64]],
+    up: tuple[float, float],
+    detection: _Detection,
+    config: SegmentConfig,
+) -> RockMask:
+    """The rock with its segmentation score (rockscan._seg_score).
+
+    The evidence is read on the flattened channel the rock was found in,
+    as a level from the ground's (0, the median of a ring around the
+    outline) to the rock's (1, the median inside).
+    """
+    import cv2
+
+    rows, cols = work.shape[:2]
+    o0, o1 = rock.origin_rowcol
+    h, w = rock.mask.shape
+    radius = math.sqrt(max(rock.area, 1) / math.pi)
+    pad = round(max(6.0, 0.4 * radius))
+    r0, r1 = max(0, o0 - pad), min(rows, o0 + h + pad)
+    c0, c1 = max(0, o1 - pad), min(cols, o1 + w + pad)
+    mask = np.zeros((r1 - r0, c1 - c0), bool)
+    mask[o0 - r0 : o0 - r0 + h, o1 - c0 : o1 - c0 + w] = rock.mask
+    window = _unit(np.ascontiguousarray(work[r0:r1, c0:c1]), dtype)
+    values = _smooth(detection.channel.values(window), 1, config.smooth_sigma)
+    lighting = _window_of(detection.lighting, up, (r0, r1, c0, c1))
+    flat = _flatten(values, lighting, detection.channel.multiplicative)
+    mask8 = mask.astype(np.uint8)
+    inside = cv2.distanceTransform(mask8, cv2.DIST_L2, 3) > max(1.0, 0.15 * radius)
+    core = flat[inside] if inside.sum() >= 4 else flat[mask]
+    outside = cv2.distanceTransform(1 - mask8, cv2.DIST_L2, 3)
+    ring = (outside > max(3.0, 0.12 * radius)) & (outside <= max(6.0, 0.35 * radius))
+    ground = float(np.median(flat[ring])) if ring.sum() >= 8 else 0.0
+    step = float(np.median(core)) - ground
+    if not math.isfinite(step) or abs(step) < 1e-6:
+        return dataclasses.replace(rock, score=0.0, evidence=())
+    sides = (r0 == 0, r1 == rows, c0 == 0, c1 == cols)
+    level = ((flat - np.float32(ground)) / np.float32(step)).astype(np.float32)
+    evidence = outline_evidence(level, mask, sides)
+    return dataclasses.replace(
+        rock, score=outline_score(evidence), evidence=tuple(float(v) for v in evidence.as_array())
+    )
 
 
 def _threshold_rock(
@@ -887,6 +1265,7 @@ def _threshold_rock(
     dtype: np.dtype,
     estimate: NDArray[np.bool_],
     origin: tuple[int, int],
+    territory: NDArray[np.bool_],
     to_detect: tuple[NDArray[np.int64], NDArray[np.int64]],
     up: tuple[float, float],
     detection: _Detection,
@@ -944,7 +1323,9 @@ def _threshold_rock(
         # Clipped ground (a glaring corner) stays ground: only what already rises is lifted.
         ceiling &= level > 0.25
         level[ceiling] = np.maximum(level[ceiling], 1.0)
-    count, labels = cv2.connectedComponents((level > 0.5).astype(np.uint8), connectivity=4)
+    # A touching neighbour beyond half-way is not this rock: keep to its territory.
+    own = territory[to_row[r0:r1, None], to_col[None, c0:c1]]
+    count, labels = cv2.connectedComponents(((level > 0.5) & own).astype(np.uint8), connectivity=4)
     overlap = np.bincount(labels[core], minlength=count)
     overlap[0] = 0
     if overlap.max() == 0:

@@ -8,7 +8,7 @@ from hypothesis import given
 from hypothesis import strategies as st
 
 from rockscan.errors import ParameterError
-from rockscan.measure import contrast_score, outline_sizes, polygon_moments, report_outline_xy
+from rockscan.measure import outline_sizes, polygon_moments, report_outline_xy
 from rockscan.outline import polygon_area_centroid, trace_outline
 
 
@@ -88,16 +88,3 @@ def test_bad_inputs_name_the_parameter():
         outline_sizes([[0, 0], [1, 0], [0, 1]], 0.0)
     with pytest.raises(ParameterError, match="no area"):
         polygon_moments([[0, 0], [1, 1], [2, 2]])
-
-
-def test_contrast_score_grows_with_the_rocks_contrast():
-    rng = np.random.default_rng(4)
-    rr, cc = np.mgrid[0:120, 0:120]
-    mask = (rr - 60) ** 2 + (cc - 60) ** 2 <= 30**2
-    noise = rng.normal(0, 0.05, mask.shape)
-    scores = [contrast_score(0.4 + step * mask + noise, mask) for step in (0.0, 0.05, 0.15, 0.5)]
-    assert scores == sorted(scores) and scores[0] < 0.1 and scores[-1] > 0.8
-    assert all(0.0 <= s <= 1.0 for s in scores)
-    # A rock that differs in one colour channel only is as clear as in gray.
-    rgb = np.stack([0.4 + noise, 0.4 + 0.5 * mask + noise, 0.4 + noise], axis=-1)
-    assert contrast_score(rgb, mask) == pytest.approx(scores[-1], rel=1e-6)

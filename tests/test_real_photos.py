@@ -2,7 +2,9 @@
 
 The coins' positions come from an independent oracle, scikit-image's own
 gallery segmentation of this photo (Sobel elevation map, watershed from dark
-and bright markers, holes filled), not from rockscan.
+and bright markers, holes filled), not from rockscan; their outlines from the
+segmentation benchmark's reference (tests/data/coins_reference.png, made per
+coin and checked by eye).
 """
 
 from __future__ import annotations
@@ -19,6 +21,7 @@ from skimage import data, filters, measure, segmentation
 from rockscan.cli import main
 from rockscan.io import data_path
 from rockscan.pipeline import classify_image, classify_path
+from rockscan.segment import CONFIDENT_SCORE, segment
 
 EXAMPLES = data_path("examples")
 
@@ -112,3 +115,37 @@ def test_bundled_rendered_rocks_classify_as_their_truth(truth_path, default_lib)
     np.testing.assert_allclose(rock.centroid_xy, truth["centroid_xy"], atol=1.0)
     period = 360.0 / truth["symmetry"]
     assert abs((rock.match.angle_deg - truth["angle_deg"] + period / 2) % period - period / 2) < 1.5
+
+
+# ---------------------------------------------------------------- against the reference outlines
+
+
+def _bench():
+    import sys
+    from pathlib import Path
+
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "scripts"))
+    import bench_segment
+
+    return bench_segment
+
+
+def test_all_finds_the_24_reference_coins_one_to_one():
+    """--all on coins(): every coin of the hand-checked reference, one region each."""
+    bench = _bench()
+    truth = bench.coins_reference()
+    found = bench.as_method(segment)(data.coins(), "all")
+    crowd = bench.score_crowd(found, truth)
+    assert (crowd.n_true, crowd.n_found, crowd.matched, crowd.merges, crowd.splits) == (24, 24, 24, 0, 0)
+
+
+def test_single_coin_crops_with_neighbours_at_the_edges_are_outlined_and_circles(default_lib):
+    """Every coin at native resolution, a margin of a third of its diameter (neighbours intrude)."""
+    bench = _bench()
+    for k, (crop, truth) in enumerate(bench.coin_crops()):
+        seg = segment(crop)
+        found = bench.segmentation_labels(seg, crop.shape)
+        assert bench.iou(found == 1, truth == 1) >= 0.9, k
+        rock = classify_image(crop, default_lib)[0]
+        assert rock.match.nearest == "circle", k
+        assert rock.segmentation_score >= CONFIDENT_SCORE, k

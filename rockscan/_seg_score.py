@@ -1,0 +1,157 @@
+"""How well a photo supports a rock's outline: a score in [0, 1].
+
+A right outline runs where the photo steps from the rock's level to the
+ground's all the way round. A wrong one shows it somewhere along its length:
+
+* an outline that leaked into the ground runs through ground texture, with
+  no step across it (``support`` low, ``weak`` high);
+* an outline that left part of the rock out (a shaded side) has rock, not
+  ground, just outside it (``outside`` high);
+* an outline that took in a neighbour or the ground between rocks is ragged
+  and hollow (``solidity`` low) or runs along the frame (``frame``);
+* an outline of a faint rock on a busy ground is hard to trust wherever it
+  runs (``noise``: the ground's spread against the step).
+
+Each is measured on the level map of the rock's window (0 the ground's
+level, 1 the rock's), the score is a logistic function of them, its weights
+fitted on photos of known truth (the development part of the segmentation
+benchmark) so that a low score marks a likely wrong outline.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+
+__all__ = ["OutlineEvidence", "outline_evidence", "outline_score"]
+
+
+@dataclass(frozen=True)
+class OutlineEvidence:
+    """What the photo says about one outline (module docstring).
+
+    Attributes
+    ----------
+    support : float
+        Mean step across the outline, from just inside to just outside, in
+        units of the rock's step (1 for a clean edge all round, clipped to [0, 1]).
+    weak : float
+        Share of the outline where that step is under a third of the rock's.
+    outside : float
+        Mean level just outside the outline (0 when ground lies there).
+    noise : float
+        Robust spread of the ground's level around the rock, in units of the step.
+    frame : float
+        Share of the outline that runs along the photo's frame.
+    solidity : float
+        Area over the area of the convex hull.
+    """
+
+    support: float
+    weak: float
+    outside: float
+    noise: float
+    frame: float
+    solidity: float
+
+    def as_array(self) -> NDArray[np.float64]:
+        return np.array([self.support, self.weak, self.outside, self.noise, self.frame, self.solidity])
+
+
+#: Logistic weights of the evidence (support, weak, outside, noise, frame,
+#: solidity) and the intercept, fitted on the benchmark's development part.
+WEIGHTS = np.array([6.0, -10.0, -6.0, -4.0, -6.0, 6.0])
+INTERCEPT = -5.5
+
+
+def outline_score(evidence: OutlineEvidence) -> float:
+    """The logistic score in [0, 1] of an outline's evidence (higher: more likely right)."""
+    t = float(INTERCEPT + WEIGHTS @ evidence.as_array())
+    return 1.0 / (1.0 + math.exp(-max(min(t, 50.0), -50.0)))
+
+
+def outline_evidence(
+    level: NDArray[np.float32], mask: NDArray[np.bool_], frame_sides: tuple[bool, bool, bool, bool]
+) -> OutlineEvidence:
+    """Measure an outline's evidence on a window's level map.
+
+    Parameters
+    ----------
+    level : (h, w) ndarray of float32
+        0 at the ground's level, 1 at the rock's.
+    mask : (h, w) ndarray of bool
+        The rock.
+    frame_sides : (bool, bool, bool, bool)
+        Whether the window's top, bottom, left and right edges are the photo's frame.
+
+    Returns
+    -------
+    OutlineEvidence
+    """
+    import cv2
+
+    m8 = mask.astype(np.uint8)
+    area = int(m8.sum())
+    if area == 0:
+        return OutlineEvidence(0.0, 1.0, 1.0, 1.0, 0.0, 0.0)
+    radius = math.sqrt(area / math.pi)
+    width = max(2, round(0.08 * radius))
+    # The bands stand a band's width off the outline: a blurred edge is a
+    # ramp across the outline, and a right outline has rock beyond the ramp
+    # on one side and ground on the other.
+    gap = width
+    reach = gap + width
+    pad = reach + 1
+    # Pad with replicated values so that bands near the window's edge are whole.
+    lv = cv2.copyMakeBorder(level.astype(np.float32), pad, pad, pad, pad, cv2.BORDER_REPLICATE)
+    mk = cv2.copyMakeBorder(m8, pad, pad, pad, pad, cv2.BORDER_CONSTANT, value=0)
+    # Distances to the outline, inside and outside, give the bands without large structuring elements.
+    inside_dist = cv2.distanceTransform(mk, cv2.DIST_L2, 3)
+    outside_dist = cv2.distanceTransform(1 - mk, cv2.DIST_L2, 3)
+    inner = ((inside_dist > gap) & (inside_dist <= reach)).astype(np.uint8)
+    outer = ((outside_dist > gap) & (outside_dist <= reach)).astype(np.uint8)
+    boundary = (mk & (1 - cv2.erode(mk, np.ones((3, 3), np.uint8)))).astype(bool)
+    # The frame: boundary pixels on a window edge that is the photo's edge.
+    on_frame = np.zeros(mk.shape, bool)
+    top, bottom, left, right = frame_sides
+    if top:
+        on_frame[: pad + 1] = True
+    if bottom:
+        on_frame[-pad - 1 :] = True
+    if left:
+        on_frame[:, : pad + 1] = True
+    if right:
+        on_frame[:, -pad - 1 :] = True
+    frame_px = boundary & on_frame
+    inside_px = boundary & ~on_frame
+    n_boundary = int(boundary.sum())
+    frame = float(frame_px.sum()) / max(n_boundary, 1)
+    size = (2 * reach + 1, 2 * reach + 1)
+    in_n = cv2.boxFilter(inner.astype(np.float32), -1, size, normalize=False)
+    in_s = cv2.boxFilter(lv * inner, -1, size, normalize=False)
+    out_n = cv2.boxFilter(outer.astype(np.float32), -1, size, normalize=False)
+    out_s = cv2.boxFilter(lv * outer, -1, size, normalize=False)
+    at = inside_px & (in_n > 0) & (out_n > 0)
+    if at.sum() < 4:
+        support, weak, outside = 0.0, 1.0, 1.0
+    else:
+        inside_mean = in_s[at] / in_n[at]
+        outside_mean = out_s[at] / out_n[at]
+        step = inside_mean - outside_mean
+        support = float(np.clip(step, 0.0, 1.0).mean())
+        weak = float((step < 1.0 / 3.0).mean())
+        outside = float(np.clip(outside_mean, 0.0, 1.0).mean())
+    ring = (outside_dist > reach) & (outside_dist <= 3 * reach)
+    ring = ring[pad:-pad, pad:-pad]
+    values = level[ring] if ring.sum() >= 8 else level[~mask]
+    if values.size >= 8:
+        noise = float(1.4826 * np.median(np.abs(values - np.median(values))))
+    else:
+        noise = 1.0
+    contours, _ = cv2.findContours(m8, cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_SIMPLE)
+    hull_area = max(cv2.contourArea(cv2.convexHull(np.concatenate(contours))), 1.0)
+    solidity = float(min(1.0, area / hull_area))
+    return OutlineEvidence(support, weak, outside, min(noise, 2.0), frame, solidity)

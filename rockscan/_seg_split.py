@@ -1,0 +1,294 @@
+"""A region that holds several rocks, cut into one region per rock.
+
+Growth at a low threshold joins rocks that touch, or nearly touch through
+the blur between them, into one region. Two cues part them again, each a
+watershed from markers (see :func:`split_rocks`):
+
+1. **Contrast.** Every rock is a hump of contrast with its own top; between
+   two rocks the contrast dips towards the ground's. The region is flooded
+   from its local maxima, and two neighbouring basins are joined again when
+   the pass between them is high for the lower of their tops (texture on one
+   rock), and kept apart when it is low (the ground, or a dark crack, between
+   two rocks). This is the dynamics of the maxima, relative to their height,
+   so rocks of different contrast part alike.
+2. **Shape.** Rocks that touch without any dip between them are still
+   several compact blobs joined by necks. The distance to the ground has one
+   peak per blob: the part is flooded from those peaks and cut where the
+   neck between two peaks is narrow for the smaller blob.
+
+A single rock, however textured or shaded, has one top that its texture
+barely dents and one peak of its distance map, and stays whole.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+
+import numpy as np
+from numpy.typing import NDArray
+
+__all__ = ["split_necks", "split_rocks", "territories"]
+
+#: A pass between two humps of contrast at least this share of the lower top
+#: joins them (texture on one rock); below it they are two rocks.
+PASS_SHARE = 0.5
+#: Solidity from which a region is taken for one rock without looking further.
+CONVEX = 0.96
+#: Solidity from which a cell the contrast left whole is one rock (shape cue skipped).
+CONVEX_CELL = 0.95
+#: Smoothing of the contrast before it is split, as a share of the largest
+#: inscribed radius in the region.
+TEXTURE_SHARE = 0.1
+#: A neck narrower than this share of the smaller blob's inscribed radius
+#: (both as distances to the ground) parts two blobs.
+NECK_SHARE = 0.72
+#: A border between two parts at least this share of the smaller part's
+#: equivalent diameter joins them: rocks touch along a short contact, while a
+#: cut through one rock runs across it.
+CUT_SHARE = 0.8
+#: Smallest inscribed radius of a blob, in pixels, for it to stand alone.
+MIN_PEAK = 2.0
+
+
+def split_rocks(
+    signed: NDArray[np.float32], region: NDArray[np.bool_], min_area: float, floor: float
+) -> list[NDArray[np.bool_]]:
+    """The rocks one region holds.
+
+    Parameters
+    ----------
+    signed : (rows, cols) ndarray of float32
+        Contrast against the ground, positive towards the rocks (smoothed).
+    region : (rows, cols) ndarray of bool
+        One connected region of contrast above ``floor``.
+    min_area : float
+        Smallest rock, in pixels.
+    floor : float
+        The contrast the region was grown to (its edge).
+
+    Returns
+    -------
+    list of (rows, cols) ndarray of bool
+        One mask per rock, together covering the region; the region itself
+        when it is one rock.
+    """
+    import cv2
+
+    ys, xs = np.nonzero(region)
+    if ys.size < 2 * min_area:
+        return [region]
+    r0, r1, c0, c1 = ys.min(), ys.max() + 1, xs.min(), xs.max() + 1
+    # A pixel of ground all round keeps the window's edge out of the flooding.
+    r0, c0 = max(0, r0 - 1), max(0, c0 - 1)
+    r1, c1 = min(region.shape[0], r1 + 1), min(region.shape[1], c1 + 1)
+    sub = region[r0:r1, c0:c1]
+    if _solidity(sub) >= CONVEX:
+        # Touching rocks leave notches where they meet: a convex region is one rock.
+        return [region]
+    # Texture on a rock (a coin's relief) dents its contrast as deeply as the
+    # gap between two rocks, but over a shorter length: smoothing by a tenth
+    # of the largest rock's inscribed radius fills the one and keeps the other.
+    # A ground pixel all round: the region may fill its window at the frame.
+    inscribed = float(cv2.distanceTransform(np.pad(sub, 1).astype(np.uint8), cv2.DIST_L2, 5).max())
+    values = np.where(sub, signed[r0:r1, c0:c1], 0.0).astype(np.float32)
+    smooth = values
+    if inscribed * TEXTURE_SHARE > 0.5:
+        smooth = cv2.GaussianBlur(
+            np.ascontiguousarray(signed[r0:r1, c0:c1], dtype=np.float32), (0, 0), inscribed * TEXTURE_SHARE
+        )
+        smooth = np.where(sub, smooth, 0.0).astype(np.float32)
+    cells = _contrast_cells(values, sub, floor)
+    parts = []
+    for label in range(1, int(cells.max()) + 1):
+        cell = cells == label
+        if cell.sum() < min_area:
+            continue
+        if _solidity(cell) >= CONVEX_CELL:
+            # No notch where a neighbour would touch: one rock, however its light falls.
+            parts.append(cell)
+            continue
+        # Necks are judged half-way up the cell's contrast: at the region's own
+        # floor the blur between touching rocks fills them in.
+        # Half-way up to the brighter rocks' level, and to the fainter ones'
+        # (a faint rock against a clear one shows its necks only there).
+        blobs = max(
+            (
+                split_necks(
+                    _filled(cell & (values > floor + 0.5 * (level - floor)), min_area), 0.5 * min_area
+                )
+                for level in np.percentile(values[cell], [90, 30])
+            ),
+            key=len,
+        )
+        if len(blobs) == 1:
+            parts.append(cell)
+        else:
+            owners = territories(blobs)
+            parts.extend(cell & (owners == i) for i in range(1, len(blobs) + 1))
+    if len(parts) <= 1:
+        return [region]
+    out = []
+    for part in parts:
+        full = np.zeros(region.shape, bool)
+        full[r0:r1, c0:c1] = part
+        out.append(full)
+    return out
+
+
+def territories(regions: list[NDArray[np.bool_]]) -> NDArray[np.int32]:
+    """Every pixel given to the nearest region (1-based labels, in list order).
+
+    A rock's outline, traced later on a finer image, must not run into a
+    neighbour it touches: it is kept to its territory.
+    """
+    import cv2
+
+    if not regions:
+        raise ValueError("territories of no region")
+    labels = np.zeros(regions[0].shape, np.int32)
+    for i, region in enumerate(regions, start=1):
+        labels[region & (labels == 0)] = i
+    if len(regions) == 1:
+        return np.ones_like(labels)
+    # The Voronoi cells of the regions: OpenCV labels each ground pixel by its
+    # nearest zero pixel; map those back to the regions.
+    _, nearest = cv2.distanceTransformWithLabels(
+        (labels == 0).astype(np.uint8), cv2.DIST_L2, 5, labelType=cv2.DIST_LABEL_PIXEL
+    )
+    owner = np.zeros(int(nearest.max()) + 1, np.int32)
+    owner[nearest[labels > 0]] = labels[labels > 0]
+    return owner[nearest]
+
+
+def _contrast_cells(
+    values: NDArray[np.float32], region: NDArray[np.bool_], floor: float
+) -> NDArray[np.int32]:
+    """Basins of the contrast's maxima, joined across high passes (module docstring, cue 1)."""
+    return _flood_and_join(
+        values,
+        region & (values > floor),
+        region,
+        lambda height, lower, cut, smaller: (
+            height - floor >= PASS_SHARE * (lower - floor) or _long_cut(cut, smaller)
+        ),
+    )
+
+
+def split_necks(cell: NDArray[np.bool_], min_area: float) -> list[NDArray[np.bool_]]:
+    """A mask cut at narrow necks between compact blobs (module docstring, cue 2).
+
+    Parameters
+    ----------
+    cell : (rows, cols) ndarray of bool
+    min_area : float
+        Smallest part, in pixels.
+
+    Returns
+    -------
+    list of (rows, cols) ndarray of bool
+        The parts; ``[cell]`` when it is one blob.
+    """
+    import cv2
+
+    dist = cv2.distanceTransform(np.pad(cell, 1).astype(np.uint8), cv2.DIST_L2, 5)[1:-1, 1:-1]
+    labels = _flood_and_join(
+        dist,
+        cell & (dist >= MIN_PEAK),
+        cell,
+        lambda height, lower, cut, smaller: height >= NECK_SHARE * lower or _long_cut(cut, smaller),
+    )
+    parts = [labels == i for i in range(1, int(labels.max()) + 1)]
+    parts = [p for p in parts if p.sum() >= min_area]
+    return parts if len(parts) > 1 else [cell]
+
+
+def _solidity(mask: NDArray[np.bool_]) -> float:
+    """Area over the area of the convex hull (pixel centres, so a little over 1 for small masks)."""
+    import cv2
+
+    contours, _ = cv2.findContours(mask.astype(np.uint8), cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_SIMPLE)
+    hull = cv2.contourArea(cv2.convexHull(np.concatenate(contours)))
+    return float(mask.sum()) / max(hull, 1.0)
+
+
+def _filled(mask: NDArray[np.bool_], largest: float) -> NDArray[np.bool_]:
+    """The mask with its holes smaller than ``largest`` pixels filled: dark relief
+    on a light rock is no neck, the ground enclosed by a ring of rocks stays."""
+    import cv2
+
+    _, labels, stats, _ = cv2.connectedComponentsWithStats((~mask).astype(np.uint8), connectivity=4)
+    small = stats[:, cv2.CC_STAT_AREA] < largest
+    # Holes touch no edge of the window (its first row and column are outside the region).
+    small[labels[0, 0]] = False
+    return mask | small[labels]
+
+
+def _long_cut(cut: float, smaller: float) -> bool:
+    """Whether a border of ``cut`` pixels runs across a part of ``smaller`` pixels (CUT_SHARE)."""
+    return cut >= CUT_SHARE * math.sqrt(4.0 * smaller / math.pi)
+
+
+def _flood_and_join(
+    values: NDArray[np.float32],
+    allowed: NDArray[np.bool_],
+    region: NDArray[np.bool_],
+    join: Callable[[float, float, float, float], bool],
+) -> NDArray[np.int32]:
+    """Watershed of ``values`` from its local maxima within ``allowed``, basins joined across passes.
+
+    Two neighbouring basins are joined, from the highest pass down as a flood
+    would join them (a component tree), when ``join(pass, lower top, cut,
+    smaller area)`` holds: the lower top and the smaller area are those of the
+    two sides as joined so far, the cut the length of their border. Returns labels
+    1..n over ``region``, 0 elsewhere.
+    """
+    import cv2
+    from skimage.segmentation import watershed
+
+    peaks = (values >= cv2.dilate(values, np.ones((3, 3), np.uint8))) & allowed
+    count, markers = cv2.connectedComponents(peaks.astype(np.uint8), connectivity=8)
+    if count <= 2:
+        return region.astype(np.int32)
+    basins = watershed(-values, markers, mask=region).astype(np.int32)
+    top = np.zeros(count, np.float64)
+    np.maximum.at(top, basins.ravel(), values.ravel())
+    # Passes between 4-neighbours of different basins: the lower of the two
+    # pixels; a pair's pass is the highest such value along their border.
+    pairs, heights = [], []
+    for a, b, va, vb in (
+        (basins[:, :-1], basins[:, 1:], values[:, :-1], values[:, 1:]),
+        (basins[:-1], basins[1:], values[:-1], values[1:]),
+    ):
+        border = (a != b) & (a > 0) & (b > 0)
+        lo, hi = np.minimum(a[border], b[border]), np.maximum(a[border], b[border])
+        pairs.append(lo.astype(np.int64) * count + hi)
+        heights.append(np.minimum(va[border], vb[border]))
+    keys, height = np.concatenate(pairs), np.concatenate(heights)
+    if keys.size == 0:
+        return basins
+    order = np.argsort(keys, kind="stable")
+    keys, height = keys[order], height[order]
+    starts = np.flatnonzero(np.r_[True, keys[1:] != keys[:-1]])
+    passes = np.maximum.reduceat(height, starts)
+    cuts = np.diff(np.r_[starts, keys.size])
+    keys = keys[starts]
+    parent = np.arange(count)
+    area = np.bincount(basins.ravel(), minlength=count).astype(np.float64)
+
+    def root(i: int) -> int:
+        while parent[i] != i:
+            parent[i] = parent[parent[i]]
+            i = parent[i]
+        return i
+
+    for k in np.argsort(-passes, kind="stable"):
+        i, j = root(int(keys[k] // count)), root(int(keys[k] % count))
+        if i != j and join(float(passes[k]), min(top[i], top[j]), float(cuts[k]), min(area[i], area[j])):
+            parent[j] = i
+            top[i] = max(top[i], top[j])
+            area[i] += area[j]
+    roots = np.array([root(i) for i in range(count)])
+    # Basin 0 (outside the region) is its own root and keeps label 0.
+    _, relabel = np.unique(roots, return_inverse=True)
+    return relabel.astype(np.int32)[basins]

@@ -1,0 +1,147 @@
+"""Touching rocks parted, the segmentation score, and the confident-outline rule.
+
+Drawn photos with exact answers: touching discs (the count is known), an
+outline that is right, shrunk, grown or half of the rock (the score must
+order them), and the pipeline's rule that an unsupported outline is never
+interesting.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from test_segment import coverage, photo_of
+
+import rockscan.pipeline
+from rockscan._seg_score import outline_evidence, outline_score
+from rockscan._seg_split import split_necks, split_rocks, territories
+from rockscan.pipeline import classify_image, measure_rocks
+from rockscan.segment import CONFIDENT_SCORE, segment
+
+# ---------------------------------------------------------------- touching rocks
+
+
+def chain(shape, centers, radius):
+    """Coverage of discs of one radius at the given centres (touching where they are 2 r apart)."""
+    return [coverage(shape, c, (radius, radius)) for c in centers]
+
+
+@pytest.mark.parametrize("n", [2, 3, 5])
+def test_touching_discs_are_parted_one_rock_each(n):
+    shape = (160, 60 + 40 * n)
+    # Centres 1.9 radii apart: each disc overlaps the next a little, no ground between them.
+    centers = [(80, 40 + 38 * i) for i in range(n)]
+    pixels = photo_of([(c, 0.85) for c in chain(shape, centers, 20)], shape=shape)
+    seg, rocks = measure_rocks(pixels, 360, all_rocks=True)
+    assert seg.n_rocks == n
+    found = sorted(o.centroid_rowcol[1] for o, _ in rocks)
+    np.testing.assert_allclose(found, [c[1] for c in centers], atol=1.5)
+    for outline, _ in rocks:
+        # Each is about one disc: the cut takes a sliver of the overlap at most.
+        assert outline.area_px == pytest.approx(np.pi * 20**2, rel=0.12)
+
+
+def test_touching_rocks_of_different_contrast_are_parted():
+    shape = (160, 200)
+    faint, clear = coverage(shape, (80, 70), (28, 28)), coverage(shape, (80, 125), (28, 28))
+    pixels = photo_of([(faint, 0.62), (clear, 0.9)], shape=shape)
+    seg = segment(pixels, all_rocks=True)
+    assert seg.n_rocks == 2
+
+
+def test_a_single_elongated_or_textured_rock_stays_whole():
+    shape = (200, 300)
+    rng = np.random.default_rng(3)
+    ellipse = coverage(shape, (100, 150), (30, 95))
+    pixels = photo_of([(ellipse, 0.85)], shape=shape).astype(np.float64)
+    # Dark relief across the rock, as deep as a gap between two rocks, but short.
+    pixels[ellipse > 0.5] -= 90 * (rng.random(int((ellipse > 0.5).sum())) < 0.08)
+    seg = segment(np.clip(pixels, 0, 255).astype(np.uint8), all_rocks=True)
+    assert seg.n_rocks == 1
+
+
+def test_split_necks_cuts_a_dumbbell_and_not_a_disc():
+    yy, xx = np.mgrid[:80, :140]
+    left = (yy - 40) ** 2 + (xx - 40) ** 2 <= 25**2
+    right = (yy - 40) ** 2 + (xx - 100) ** 2 <= 25**2
+    bar = (abs(yy - 40) <= 4) & (xx > 40) & (xx < 100)
+    parts = split_necks(left | right | bar, 50)
+    assert len(parts) == 2
+    assert sorted(int(p.sum()) for p in parts) == pytest.approx([left.sum() + 150] * 2, rel=0.15)
+    assert len(split_necks(left, 50)) == 1
+
+
+def test_split_rocks_parts_two_humps_of_contrast_across_a_dip():
+    yy, xx = np.mgrid[:60, :120]
+    signed = (
+        10 * np.exp(-((yy - 30) ** 2 + (xx - 35) ** 2) / 300.0)
+        + 6 * np.exp(-((yy - 30) ** 2 + (xx - 85) ** 2) / 300.0)
+    ).astype(np.float32)
+    region = signed > 0.5
+    parts = split_rocks(signed, region, 50, 0.5)
+    assert len(parts) == 2
+    assert np.array_equal(np.logical_or.reduce(parts), region)
+    # One hump, however textured, is one rock.
+    single = (10 * np.exp(-((yy - 30) ** 2 + (xx - 60) ** 2) / 500.0)).astype(np.float32)
+    assert len(split_rocks(single, single > 0.5, 50, 0.5)) == 1
+
+
+def test_territories_give_every_pixel_to_the_nearest_region():
+    a, b = np.zeros((5, 9), bool), np.zeros((5, 9), bool)
+    a[2, 1], b[2, 7] = True, True
+    owners = territories([a, b])
+    assert (owners[:, :4] == 1).all() and (owners[:, 5:] == 2).all()
+
+
+# ---------------------------------------------------------------- the segmentation score
+
+
+def disc_level(shape=(120, 120), radius=30.0, noise=0.05, seed=0):
+    rng = np.random.default_rng(seed)
+    cover = coverage(shape, (60, 60), (radius, radius))
+    return (cover + rng.normal(0.0, noise, shape)).astype(np.float32), cover > 0.5
+
+
+def test_the_score_prefers_the_right_outline_to_a_shrunk_grown_or_half_one():
+    level, truth = disc_level()
+    yy, xx = np.mgrid[: truth.shape[0], : truth.shape[1]]
+    shrunk = (yy - 60) ** 2 + (xx - 60) ** 2 <= 20**2
+    grown = (yy - 60) ** 2 + (xx - 60) ** 2 <= 42**2
+    half = truth & (xx < 60)
+    sides = (False, False, False, False)
+    right = outline_score(outline_evidence(level, truth, sides))
+    assert right > 0.9
+    for wrong in (shrunk, grown, half):
+        assert outline_score(outline_evidence(level, wrong, sides)) < CONFIDENT_SCORE < right
+
+
+def test_an_outline_along_the_frame_scores_lower_than_inside_it():
+    level, truth = disc_level()
+    inside = outline_score(outline_evidence(level, truth, (False,) * 4))
+    cut = level[:, 45:]  # the disc cut by the frame on the left
+    along = outline_score(outline_evidence(cut, truth[:, 45:], (False, False, True, False)))
+    assert along < inside
+
+
+def test_every_rock_gets_a_score_in_0_1_and_a_clear_one_scores_high():
+    shape = (200, 300)
+    pixels = photo_of([(coverage(shape, (100, 150), (40, 55)), 0.85)], shape=shape)
+    seg = segment(pixels)
+    assert 0.9 < seg.rocks[0].score <= 1.0
+    assert len(seg.rocks[0].evidence) == 6
+
+
+# ---------------------------------------------------------------- confident outlines only
+
+
+def test_a_rock_below_the_confident_score_is_never_interesting(monkeypatch, default_lib):
+    shape = (200, 300)
+    pixels = photo_of([(coverage(shape, (100, 150), (45, 45)), 0.85)], shape=shape)
+    rock = classify_image(pixels, default_lib)[0]
+    assert rock.match.interesting and rock.match.match == "circle"
+    assert rock.segmentation_score == segment(pixels).rocks[0].score
+    # The same rock, judged against a bar its outline cannot reach.
+    monkeypatch.setattr(rockscan.pipeline, "CONFIDENT_SCORE", 1.01)
+    rock = classify_image(pixels, default_lib)[0]
+    assert not rock.match.interesting and rock.match.match is None
+    assert rock.match.nearest == "circle"
