@@ -52,7 +52,11 @@ __all__ = [
 ]
 
 LIBRARY_FORMAT = "rockscan-library"
-LIBRARY_VERSION = 1
+LIBRARY_VERSION = 2
+#: The first format version whose files say whether they carry cutoffs: every
+#: version-2 file has a "calibration" record, null for a library saved without
+#: them by design (an observed library: novelty has its own threshold).
+_CALIBRATED_VERSION = 2
 #: Photo file endings rockscan reads (lower case).
 IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".tif", ".tiff", ".bmp")
 
@@ -217,6 +221,7 @@ def save_library(library: Library, path: str | os.PathLike[str]) -> None:
         "face": library.face_config.to_dict(),
     }
     cutoff_arrays = {}
+    metadata["calibration"] = None
     if library.calibration is not None:
         cal = library.calibration
         metadata["calibration"] = cal.to_dict()
@@ -331,7 +336,7 @@ def load_library(path: str | os.PathLike[str]) -> Library:
         raise LibraryError(f"{path}: library cutoffs are inconsistent ({_first_line(exc)})") from None
     except (KeyError, TypeError, ValueError, OverflowError) as exc:
         raise LibraryError(f"{path}: library file is inconsistent ({_first_line(exc)})") from None
-    if library.calibration is None:
+    if library.calibration is None and version < _CALIBRATED_VERSION:
         from rockscan.calibrate import calibrate
 
         # A file from before cutoffs were stored: its shapes are all that is

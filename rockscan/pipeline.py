@@ -348,7 +348,12 @@ def library_from_spec(
     config = face_config or FaceConfig()
     if all(shape.params is not None for shape in shapes):
         # No photos to read: the library's own build, chunked for large specs.
-        return Library.from_shapes(shapes, face_config=config, n_components=n_components)
+        return Library.from_shapes(
+            shapes,
+            face_config=config,
+            n_components=n_components,
+            **({} if tolerance is None else {"tolerance": tolerance}),
+        )
     n = config.n_angles
     names, radii, faces, params, interest, sources = [], [], [], [], [], []
     for shape in shapes:
