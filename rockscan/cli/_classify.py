@@ -178,7 +178,8 @@ def _expand_stdin(photos: tuple[str, ...]) -> tuple[str, ...]:
             "(e.g. find DIR -name '*.jpg' | rockscan classify -)",
             param_hint="PHOTO",
         )
-    read = [line.rstrip("\r\n") for line in stream]
+    # read(), not line iteration: click 8.2's test runner ends iteration with EOFError.
+    read = [line.rstrip("\r") for line in stream.read().split("\n")]
     read = [line for line in read if line.strip()]
     if not read:
         raise click.BadParameter("'-' given but standard input holds no photo paths", param_hint="PHOTO")
