@@ -13,7 +13,15 @@ from typing import Any
 import click
 
 from rockscan._choices import NOVELTY_METRICS
-from rockscan.cli import _errors, _fail, _library_option, _load_library, _match_options, main
+from rockscan.cli import (
+    _errors,
+    _fail,
+    _library_option,
+    _load_library,
+    _match_options,
+    _px_per_mm_option,
+    main,
+)
 
 
 @main.command("triage")
@@ -72,15 +80,7 @@ from rockscan.cli import _errors, _fail, _library_option, _load_library, _match_
     help="With --observed, what a novel rock's interest is (default: the library's largest shape "
     "interest; 0: novelty does not change the ranking).",
 )
-@click.option(
-    "--px-per-mm",
-    "px_per_mm",
-    type=click.FloatRange(min=0, min_open=True),
-    default=None,
-    metavar="F",
-    help="Photo pixels per millimetre: every row also gets area_mm2, equivalent_diameter_mm, "
-    "major_axis_mm and minor_axis_mm.",
-)
+@_px_per_mm_option
 @click.option(
     "--all",
     "all_rocks",
