@@ -67,7 +67,7 @@ class DecisionTest:
     relation: str
 
     def describe(self) -> str:
-        """E.g. ``'distance 0.00217 ≤ 0.192'``, or the comparison that fails."""
+        """E.g. ``'distance 0.31 ≤ 0.80'``, or the comparison that fails."""
         shown = {"<=": "≤", ">": ">", ">=": "≥"}
         failing = {"<=": ">", ">": "≤", ">=": "<"}
         relation = shown[self.relation] if self.passed else failing[self.relation]
