@@ -1,6 +1,6 @@
 """Accuracy benchmark: rockscan, the paper's exact method and baselines on rendered photos.
 
-Every set is rendered with :mod:`rockscan.render` from a fixed seed, with the
+Every set is rendered with :mod:`rockscan.core.render` from a fixed seed, with the
 default library's shapes taken round-robin. Each photo is segmented once; every
 method then matches the same outline (radii for the face methods, the contour
 for Hu moments and elliptic Fourier descriptors), so the rows differ only in
@@ -35,15 +35,15 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from rockscan.baselines import EllipticFourierMatcher, HuMomentsMatcher
-from rockscan.errors import RockscanError
-from rockscan.information import FaceConfig
+from rockscan.core.baselines import EllipticFourierMatcher, HuMomentsMatcher
+from rockscan.core.errors import RockscanError
+from rockscan.core.information import FaceConfig
+from rockscan.core.library import Library
+from rockscan.core.match import MatchConfig, match_radii
+from rockscan.core.render import RenderConfig, random_superformula, render_photo
+from rockscan.core.superformula import SuperformulaParams
 from rockscan.io import default_library, default_spec_path, read_spec
-from rockscan.library import Library
-from rockscan.match import MatchConfig, match_radii
-from rockscan.pipeline import measure_rocks
-from rockscan.render import RenderConfig, random_superformula, render_photo
-from rockscan.superformula import SuperformulaParams
+from rockscan.run.pipeline import measure_rocks
 
 #: Sets in table order; ``in_library`` sets count toward acceptance.
 SET_NAMES = (
@@ -90,12 +90,12 @@ def distractor_params(
 ) -> SuperformulaParams:
     """A random rock-like Superformula shape clearly outside the library.
 
-    Candidates come from :func:`rockscan.render.random_superformula`; one is
+    Candidates come from :func:`rockscan.core.render.random_superformula`; one is
     kept when its rotation-aligned RMS radius difference (mean radius 1) from
     every library shape is at least ``min_distance``: the matched filter's
     distance, ``FaceConfig(kind="radii")`` with the face metric.
     """
-    from rockscan.library import shape_radii
+    from rockscan.core.superformula import shape_radii
 
     n = radii_library.face_config.n_angles
     config = MatchConfig(metric="face", angle_metric="face")
@@ -169,7 +169,7 @@ Method = Callable[[np.ndarray, np.ndarray], Outcome]
 
 
 def rockscan_method(library: Library, config: MatchConfig) -> Method:
-    """A row that matches radii with :func:`rockscan.match.match_radii`."""
+    """A row that matches radii with :func:`rockscan.core.match.match_radii`."""
     order = dict(zip(library.names, library.symmetry, strict=True))
 
     def run(radii: np.ndarray, contour: np.ndarray) -> Outcome:

@@ -1,7 +1,7 @@
 """What holding BLAS to one thread costs a photo, as a ratio in one run.
 
 rockscan limits every BLAS library to one thread inside its numeric entry points
-(rockscan/_threads.py) so that results do not depend on the thread count. This
+(rockscan/core/_threads.py) so that results do not depend on the thread count. This
 times ``classify_path`` on rendered photos, and, interleaved with it, the limit
 alone (entering and leaving once, as an outermost call does), and prints the
 limit's share of a photo. Run ``python scripts/bench_blas_limit.py --help``.
@@ -15,10 +15,10 @@ import tempfile
 import time
 from pathlib import Path
 
-from rockscan import _threads
+from rockscan.core import _threads
+from rockscan.core.render import RenderConfig, render_photo
 from rockscan.io import default_library, default_spec_path, read_spec
-from rockscan.pipeline import classify_path
-from rockscan.render import RenderConfig, render_photo
+from rockscan.run.pipeline import classify_path
 
 
 def main() -> None:

@@ -33,13 +33,14 @@ from pathlib import Path
 import cv2
 import numpy as np
 
+from rockscan.core.match import match_radii
+from rockscan.core.outline import trace_outline
+from rockscan.core.polar import contour_radii
+from rockscan.core.render import RenderConfig, render_photo
+from rockscan.core.segment import segment
 from rockscan.io import default_library, default_spec_path, read_image, read_spec
-from rockscan.match import match_radii
-from rockscan.outline import trace_outline
-from rockscan.pipeline import classify_image, classify_path
-from rockscan.polar import contour_radii
-from rockscan.render import RenderConfig, render_photo
-from rockscan.segment import segment
+from rockscan.io.photos import write_photo
+from rockscan.run.pipeline import classify_image, classify_path
 
 
 def floor(path: str) -> None:
@@ -132,7 +133,7 @@ def main(argv: list[str] | None = None) -> int:
     photo = render_photo(spec.params, RenderConfig(rows=rows, cols=cols), rng=args.seed, name=spec.name)
     with tempfile.TemporaryDirectory() as folder:
         path = str(Path(folder) / f"rock.{args.format}")
-        photo.save(path)
+        write_photo(photo, path)
         pixels = read_image(path).pixels
         tasks: dict[str, Callable[[], object]] = {
             "floor": lambda: floor(path),

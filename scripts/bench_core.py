@@ -19,7 +19,7 @@ Measures, in one run, with ``time.perf_counter`` and the median of repeats:
 process limited to one BLAS thread (the direct projection is one BLAS call that
 can use every core, while the scan's per-frequency products each run on one).
 
-Random libraries come from :func:`rockscan.render.random_superformula`.
+Random libraries come from :func:`rockscan.core.render.random_superformula`.
 Writes the figures into ``--doc`` (a README section). ``--quick`` runs a tiny
 version for smoke tests.
 
@@ -46,10 +46,11 @@ from pathlib import Path
 
 import numpy as np
 
-from rockscan.information import sample_term
-from rockscan.library import Library, ShapeSpec, shape_radii
-from rockscan.match import MatchConfig, match_radii
-from rockscan.render import random_superformula
+from rockscan.core.information import sample_term
+from rockscan.core.library import Library, ShapeSpec
+from rockscan.core.match import MatchConfig, match_radii
+from rockscan.core.render import random_superformula
+from rockscan.core.superformula import shape_radii
 
 ROOT = Path(__file__).resolve().parents[1]
 PAPER = MatchConfig(metric="eigenspace", angle_metric="eigenspace")
@@ -310,7 +311,7 @@ def report(
         "## Core benchmark",
         "",
         "`python scripts/bench_core.py` measures the matcher on random Superformula libraries "
-        "(`rockscan.render.random_superformula`) and rewrites this section. Times are medians of "
+        "(`rockscan.core.render.random_superformula`) and rewrites this section. Times are medians of "
         f"{settings.repeats} repeats with `time.perf_counter`, the timed calls taking turns within every "
         f"repeat. Measured on a machine with {os.cpu_count()} cores ({platform.machine()}, Python "
         f"{platform.python_version()}, numpy {np.__version__}), shared with other work (load average "

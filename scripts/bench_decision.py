@@ -1,6 +1,6 @@
 """Decision benchmark: accept what belongs, reject what does not, on libraries the calibration never saw.
 
-Every library calibrates its own cutoffs when it is built (rockscan.calibrate);
+Every library calibrates its own cutoffs when it is built (rockscan.core.calibrate);
 this script builds libraries of several kinds, measures queries of each, and
 prints, per library kind and outline-noise level, the share of in-library
 queries accepted (the ``interesting`` flag), of out-of-library queries
@@ -21,7 +21,7 @@ default                 the built-in library
 Queries
 -------
 in-library   each library shape at outline noise 0, 5, 10, 15, 20% (the
-             paper's Fig. 11 noise, as rockscan.render draws it), at a random
+             paper's Fig. 11 noise, as rockscan.core.render draws it), at a random
              rotation; for photo-blobs new photos of the same objects
 near         superformula n1, n2, n3 scaled by 0.9 or 1.1 (blobs: a small
              smooth deformation); top-1 counts the base shape (reported apart)
@@ -32,9 +32,9 @@ outside      random shapes (superformulas, and blobs for photo-blobs) at least
 
 Radii-level queries apply the noise exactly as the renderer does (each of 360
 outline radii about the shape's origin times 1 + e, turned) and measure the
-polygon's radii about its area centroid with rockscan.polar.contour_radii: no
+polygon's radii about its area centroid with rockscan.core.polar.contour_radii: no
 pixels, and none of the calibration's own simulator. A photo-level subset
-renders and segments real photos (rockscan.render, rockscan.pipeline).
+renders and segments real photos (rockscan.core.render, rockscan.run.pipeline).
 
 Seeds: development (tuning) uses base seeds 1000-1999, the held-out report
 5000-5999 (``--seed``, default 5000); each library is drawn from the base seed
@@ -55,15 +55,16 @@ from pathlib import Path
 import numpy as np
 from scipy import ndimage
 
-from rockscan.errors import RockscanError
-from rockscan.information import FaceConfig
+from rockscan.core.errors import RockscanError
+from rockscan.core.information import FaceConfig
+from rockscan.core.library import Library, ShapeSpec
+from rockscan.core.match import MatchConfig, match_radii
+from rockscan.core.polar import contour_radii, polar_angles, polygon_centroid_xy, resample_radii
+from rockscan.core.render import RenderConfig, random_superformula, render_photo
+from rockscan.core.superformula import SuperformulaParams, shape_radii
 from rockscan.io import default_spec_path, read_spec
-from rockscan.library import Library, ShapeSpec, shape_radii
-from rockscan.match import MatchConfig, match_radii
-from rockscan.pipeline import library_from_spec, measure_rocks
-from rockscan.polar import contour_radii, polar_angles, polygon_centroid_xy, resample_radii
-from rockscan.render import RenderConfig, random_superformula, render_photo
-from rockscan.superformula import SuperformulaParams
+from rockscan.io.photos import write_photo
+from rockscan.run.pipeline import library_from_spec, measure_rocks
 
 #: Smallest matched-filter distance between two shapes of a random library.
 MIN_SPACING = 0.05
@@ -121,7 +122,7 @@ def mf_distance(a: np.ndarray, lib: Library) -> np.ndarray:
 
 def centered(radii: np.ndarray) -> np.ndarray:
     """Radii about the outline's area centroid (mean 1)."""
-    from rockscan.polar import recenter_radii
+    from rockscan.core.polar import recenter_radii
 
     r = recenter_radii(radii)[0]
     return r / r.mean()
@@ -151,7 +152,7 @@ def random_library(rng: np.random.Generator, size: int) -> list[Shape]:
 
 def _no_calibration(n: int):
     """Cutoffs that never matter (helper libraries only measure distances)."""
-    from rockscan.calibrate import Calibration
+    from rockscan.core.calibrate import Calibration
 
     return Calibration(
         cutoffs=np.zeros(n),
@@ -243,7 +244,7 @@ def build(
         for j in range(2):
             photo = render_photo(r, RenderConfig(area_fraction=float(rng.uniform(0.08, 0.3))), rng=rng)
             path = workdir / f"rock-{i}-{j}.png"
-            photo.save(path)
+            write_photo(photo, path)
             paths.append(str(path))
         specs.append(ShapeSpec(f"rock-{i}", images=tuple(paths)))
     return library_from_spec(specs), shapes, []

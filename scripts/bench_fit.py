@@ -11,7 +11,7 @@ Measures, in one run:
     take turns photo by photo, so a busy machine slows both alike. Then the
     same for smooth random outlines that no Superformula draws well, where
     every fallback of the fit (restarts, m1 != m2) runs: the slowest case.
-(c) **Accuracy**: for ``n_shapes`` random shapes (:func:`rockscan.render.random_superformula`)
+(c) **Accuracy**: for ``n_shapes`` random shapes (:func:`rockscan.core.render.random_superformula`)
     per seed, rendered with the renderer's defaults, measured and fitted: the
     RMS difference between the fitted curve (at the fitted angle) and the true
     curve (at the true angle), about the rock's centroid, in percent of the
@@ -39,13 +39,13 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from rockscan.fit import fit_superformula
+from rockscan.core.fit import fit_superformula
+from rockscan.core.library import Library, ShapeSpec
+from rockscan.core.polar import polar_angles, recenter_radii
+from rockscan.core.render import random_superformula, render_photo
+from rockscan.core.superformula import SuperformulaParams
 from rockscan.io import default_library, default_spec_path, read_spec
-from rockscan.library import Library, ShapeSpec
-from rockscan.pipeline import classify_image, measure_rocks
-from rockscan.polar import polar_angles, recenter_radii
-from rockscan.render import random_superformula, render_photo
-from rockscan.superformula import SuperformulaParams
+from rockscan.run.pipeline import classify_image, measure_rocks
 
 
 @dataclass(frozen=True)
@@ -64,12 +64,12 @@ QUICK = Settings(seeds=(0,), n_shapes=4, n_speed=3, per_class=1)
 _COLD = """
 import sys, time
 import numpy as np
-from rockscan.library import shape_radii
-from rockscan.superformula import SuperformulaParams
+from rockscan.core.superformula import shape_radii
+from rockscan.core.superformula import SuperformulaParams
 radii = shape_radii(SuperformulaParams(5, 5, 2.0, 7.0, 7.0), 360)
-import rockscan.fit
+import rockscan.core.fit
 start = time.perf_counter()
-rockscan.fit.fit_superformula(radii, rng=0)
+rockscan.core.fit.fit_superformula(radii, rng=0)
 print(time.perf_counter() - start)
 """
 

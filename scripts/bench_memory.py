@@ -5,7 +5,7 @@ size (``ru_maxrss``); the table gives it beside that of an interpreter that only
 imported rockscan and read a tiny photo and library (the baseline), and the
 seconds the read took (wall clock, on whatever else the machine is doing).
 
-Library files (the reader checks sizes before it inflates, rockscan/_npzsafe.py):
+Library files (the reader checks sizes before it inflates, rockscan/io/_npzsafe.py):
 
 * ``bomb-declared``: a member of zeros declaring 4 GiB, deflated;
 * ``bomb-ratio``: a member of zeros within the budget, deflated a thousandfold;
@@ -38,16 +38,16 @@ from pathlib import Path
 import numpy as np
 from PIL import Image
 
-from rockscan._npzsafe import MAX_ARCHIVE_BYTES
+from rockscan.core.library import Library, ShapeSpec
+from rockscan.core.superformula import SuperformulaParams
 from rockscan.io import save_library
-from rockscan.library import Library, ShapeSpec
-from rockscan.superformula import SuperformulaParams
+from rockscan.io._npzsafe import MAX_ARCHIVE_BYTES
 
 _READ = """
 import resource, sys, time
-from rockscan.errors import RockscanError
+from rockscan.core.errors import RockscanError
 from rockscan.io import load_library, read_image
-import rockscan.library, rockscan.eigen  # what load_library imports: not part of the read
+import rockscan.core.library, rockscan.core.eigen  # what load_library imports: not part of the read
 start = time.perf_counter()
 try:
     if sys.argv[1] == "library":

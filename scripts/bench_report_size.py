@@ -8,7 +8,7 @@
    realistic one) and ranked again. Prints the page's size and bytes per card.
 2. Ranking memory: journals of N and 3N synthetic rows are ranked with the same
    chunk size; the difference in peak traced memory over 2N is what each row
-   costs beyond a chunk (the ranking streams; see rockscan.report).
+   costs beyond a chunk (the ranking streams; see rockscan.run.report).
 """
 
 from __future__ import annotations
@@ -22,10 +22,11 @@ from pathlib import Path
 
 import numpy as np
 
+from rockscan.core.render import RenderConfig, render_photo
 from rockscan.io import default_library, default_spec_path, read_spec
-from rockscan.render import RenderConfig, render_photo
-from rockscan.report import ROW_KEYS, ReportJournal, finalize_report, journal_path
-from rockscan.triage import TriageConfig, triage_folder
+from rockscan.io.report import ROW_KEYS, ReportJournal, journal_path
+from rockscan.run.report import finalize_report
+from rockscan.run.triage import TriageConfig, triage_folder
 
 REALISTIC = RenderConfig(rows=480, cols=640, rock_texture=0.08, ground_texture=0.08, pebbles=30)
 

@@ -24,7 +24,7 @@ the machine may be shared):
     (``rockscan triage --scheduler``): photos per second and peak memory of
     every process.
 
-Random shapes are drawn as :func:`rockscan.render.random_superformula` draws
+Random shapes are drawn as :func:`rockscan.core.render.random_superformula` draws
 them (m from 1 to 8, n1 and n2 log-uniform in [0.3, 20], n3 = n2 in 60% of
 draws, longest radius under 3.5 times the shortest), vectorised.
 
@@ -48,11 +48,11 @@ from pathlib import Path
 
 import numpy as np
 
+from rockscan.core.library import Library, ShapeSpec, closed_shapes_radii
+from rockscan.core.match import match_radii
+from rockscan.core.novelty import NoveltyConfig, ObservedShapes
+from rockscan.core.superformula import SuperformulaParams
 from rockscan.io import save_library, write_spec
-from rockscan.library import Library, ShapeSpec, closed_shapes_radii
-from rockscan.match import match_radii
-from rockscan.novelty import NoveltyConfig, ObservedShapes
-from rockscan.superformula import SuperformulaParams
 
 ROOT = Path(__file__).resolve().parents[1]
 

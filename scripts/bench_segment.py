@@ -1,7 +1,7 @@
 """Segmentation benchmark: rockscan and what a user would try instead, against exact truth.
 
 Photos come from :mod:`scenes` (a generator independent of
-``rockscan.render``, see its docstring for the conditions and the split) and
+``rockscan.core.render``, see its docstring for the conditions and the split) and
 from real photos shipped with scikit-image (every coin of ``coins()``, every
 single-coin crop at native resolution with a margin of a third of its
 diameter, and the cell of ``cell()`` inside its dark halo; the reference
@@ -23,7 +23,7 @@ found regions).
 
 Rows:
 
-* ``rockscan``: ``rockscan.segment.segment``; the main rock (or every rock
+* ``rockscan``: ``rockscan.core.segment.segment``; the main rock (or every rock
   with ``all_rocks``) outlined as the pipeline does (``trace_outline`` of the
   rock's coverage, mapped to photo pixels) and filled at photo resolution;
 * ``otsu``: gray, 5x5 Gaussian blur, Otsu's threshold (the ground is the
@@ -59,7 +59,7 @@ from scipy import ndimage as ndi
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 import scenes
 
-from rockscan.errors import NoRockFoundError, RockscanError
+from rockscan.core.errors import NoRockFoundError, RockscanError
 
 ROOT = Path(__file__).resolve().parents[1]
 COINS_REFERENCE = ROOT / "tests" / "data" / "coins_reference.png"
@@ -163,14 +163,14 @@ def _dense(labels: NDArray[np.integer]) -> NDArray[np.int32]:
 
 
 def segmentation_labels(seg, shape: tuple[int, int]) -> NDArray[np.int32]:
-    """A ``rockscan.segment.Segmentation`` as labels at photo resolution.
+    """A ``rockscan.core.segment.Segmentation`` as labels at photo resolution.
 
     Each rock is outlined as the pipeline outlines it (the 0.5 level of its
     coverage, in photo pixels) and filled; rock 1 is the main rock.
     """
     from skimage.draw import polygon
 
-    from rockscan.outline import trace_outline
+    from rockscan.core.outline import trace_outline
 
     labels = np.zeros(shape, np.int32)
     for i, rock in enumerate(seg.rocks, start=1):
@@ -187,7 +187,7 @@ def segmentation_labels(seg, shape: tuple[int, int]) -> NDArray[np.int32]:
 def as_method(segment_fn: Callable) -> Method:
     """A segmenter ``segment_fn(pixels, all_rocks=bool)`` as a benchmark method.
 
-    ``segment_fn`` returns a ``rockscan.segment.Segmentation`` (anything with
+    ``segment_fn`` returns a ``rockscan.core.segment.Segmentation`` (anything with
     ``rocks`` and ``scale_rowcol``) or a label image at photo resolution
     (1 = the main rock); it raises ``NoRockFoundError`` or returns no label
     when it finds nothing.
@@ -209,7 +209,7 @@ def as_method(segment_fn: Callable) -> Method:
 
 
 def _rockscan(pixels: NDArray, kind: str) -> NDArray[np.int32]:
-    from rockscan.segment import segment
+    from rockscan.core.segment import segment
 
     return as_method(segment)(pixels, kind)
 
@@ -545,9 +545,9 @@ def evaluate(
     ----------
     segment_fn : callable
         ``segment_fn(pixels, all_rocks=bool)`` returning a
-        ``rockscan.segment.Segmentation`` or a label image at photo
+        ``rockscan.core.segment.Segmentation`` or a label image at photo
         resolution (1 = the main rock), raising ``NoRockFoundError`` when it
-        finds nothing; e.g. ``rockscan.segment.segment``.
+        finds nothing; e.g. ``rockscan.core.segment.segment``.
     part : {"dev", "heldout", "real"}
         Tune on ``dev``; ``heldout`` is for reporting.
     conditions : sequence of str, optional

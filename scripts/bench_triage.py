@@ -33,10 +33,11 @@ from pathlib import Path
 
 import numpy as np
 
+from rockscan.core.render import RenderConfig, render_photo
 from rockscan.io import default_library, default_spec_path, read_spec
-from rockscan.pipeline import classify_path
-from rockscan.render import RenderConfig, render_photo
-from rockscan.triage import TriageConfig, find_photos, triage_folder
+from rockscan.io.folders import find_photos
+from rockscan.run.pipeline import classify_path
+from rockscan.run.triage import TriageConfig, triage_folder
 
 
 def _render_one(args: tuple[Path, int, int, int, int]) -> None:

@@ -1,7 +1,7 @@
 """The calibration of a library's cutoffs: its figure and its cost.
 
 Every library calibrates its own per-shape cutoffs when it is built
-(:func:`rockscan.calibrate.calibrate`; docs/decision.md). This script
+(:func:`rockscan.core.calibrate.calibrate`; docs/decision.md). This script
 
 * draws, for the default library, each shape's simulated in-library scores
   (measurements at outline noise up to the tolerance), its out-of-library
@@ -23,10 +23,11 @@ import time
 
 import numpy as np
 
-from rockscan.calibrate import Calibration, calibrate
+from rockscan.core.calibrate import Calibration, calibrate
+from rockscan.core.library import Library
+from rockscan.core.render import random_superformula
+from rockscan.core.superformula import shape_radii
 from rockscan.io import default_library
-from rockscan.library import Library, shape_radii
-from rockscan.render import random_superformula
 
 
 def figure(path: str, *, tolerance: float = 0.2) -> None:

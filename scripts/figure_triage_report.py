@@ -21,12 +21,12 @@ from pathlib import Path
 
 import numpy as np
 
+from rockscan.core.novelty import NoveltyConfig
+from rockscan.core.render import RenderConfig, render_photo
+from rockscan.core.superformula import SuperformulaParams
 from rockscan.io import default_library, default_spec_path, read_spec
-from rockscan.novelty import NoveltyConfig
-from rockscan.pipeline import ClassifyConfig
-from rockscan.render import RenderConfig, render_photo
-from rockscan.superformula import SuperformulaParams
-from rockscan.triage import TriageConfig, triage_folder
+from rockscan.run.pipeline import ClassifyConfig
+from rockscan.run.triage import TriageConfig, triage_folder
 
 PHOTO = RenderConfig(rows=480, cols=640, rock_texture=0.06, ground_texture=0.06, pebbles=20)
 

@@ -38,12 +38,12 @@ from pathlib import Path
 import numpy as np
 from PIL import Image
 
-from rockscan.errors import RockscanError
-from rockscan.information import FaceConfig
+from rockscan.core.errors import RockscanError
+from rockscan.core.information import FaceConfig
+from rockscan.core.library import Library, ShapeSpec
+from rockscan.core.render import RenderConfig, render_photo
+from rockscan.core.superformula import SuperformulaParams
 from rockscan.io import load_library, read_image, save_library
-from rockscan.library import Library, ShapeSpec
-from rockscan.render import RenderConfig, render_photo
-from rockscan.superformula import SuperformulaParams
 
 #: Byte values and integers at the edges where parsers break.
 _BYTES = (0x00, 0x01, 0x7F, 0x80, 0xFE, 0xFF)

@@ -47,12 +47,12 @@ from pathlib import Path
 
 import numpy as np
 
-from rockscan.errors import RockscanError
-from rockscan.information import FaceConfig
-from rockscan.library import Library, ShapeSpec, shape_radii
-from rockscan.match import MatchConfig, match_radii
-from rockscan.polar import polar_angles, recenter_radii
-from rockscan.superformula import SuperformulaParams
+from rockscan.core.errors import RockscanError
+from rockscan.core.information import FaceConfig
+from rockscan.core.library import Library, ShapeSpec
+from rockscan.core.match import MatchConfig, match_radii
+from rockscan.core.polar import polar_angles, recenter_radii
+from rockscan.core.superformula import SuperformulaParams, shape_radii
 
 ROOT = Path(__file__).resolve().parents[1]
 

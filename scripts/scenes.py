@@ -1,6 +1,6 @@
 """A second photo generator for judging segmentation, with exact truth.
 
-Independent of :mod:`rockscan.render` (its own code and its own physics), so
+Independent of :mod:`rockscan.core.render` (its own code and its own physics), so
 that a segmenter tuned on one is judged on the other.
 
 Physics

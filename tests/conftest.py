@@ -8,10 +8,10 @@ import numpy as np
 import pytest
 from hypothesis import HealthCheck, settings
 
-from rockscan.information import FaceConfig
+from rockscan.core.information import FaceConfig
+from rockscan.core.library import Library, ShapeSpec
+from rockscan.core.superformula import SuperformulaParams
 from rockscan.io import default_library, default_spec_path, read_spec
-from rockscan.library import Library, ShapeSpec
-from rockscan.superformula import SuperformulaParams
 
 # The suite is deterministic (the same examples every run, so a failure can be
 # replayed anywhere); "explore" draws new examples each run, "thorough" many more.

@@ -7,12 +7,12 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from rockscan.baselines import BaselineMatch, EllipticFourierMatcher, HuMomentsMatcher, template_contours
-from rockscan.errors import ParameterError
+from rockscan.core.baselines import BaselineMatch, EllipticFourierMatcher, HuMomentsMatcher, template_contours
+from rockscan.core.errors import ParameterError
+from rockscan.core.polar import radii_to_xy
+from rockscan.core.render import RenderConfig, render_photo
 from rockscan.io import default_spec_path, read_spec
-from rockscan.pipeline import measure_rocks
-from rockscan.polar import radii_to_xy
-from rockscan.render import RenderConfig, render_photo
+from rockscan.run.pipeline import measure_rocks
 
 SPECS = {s.name: s.params for s in read_spec(default_spec_path())}
 #: Library shapes whose first harmonic is an ellipse (or a circle drawn as

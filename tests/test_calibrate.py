@@ -11,19 +11,19 @@ from conftest import PAPER_SHAPES
 from hypothesis import given
 from hypothesis import strategies as st
 
-from rockscan.calibrate import (
+from rockscan.cli import main
+from rockscan.core.calibrate import (
     Calibration,
     SensorMetric,
     calibrate,
     log_noise_variance,
     simulate_radii,
 )
-from rockscan.cli import main
-from rockscan.errors import LibraryError, ParameterError
+from rockscan.core.errors import LibraryError, ParameterError
+from rockscan.core.library import Library, ShapeSpec
+from rockscan.core.match import MatchConfig, match_radii
+from rockscan.core.superformula import SuperformulaParams, shape_radii
 from rockscan.io import RecalibratedWarning, load_library, save_library
-from rockscan.library import Library, ShapeSpec, shape_radii
-from rockscan.match import MatchConfig, match_radii
-from rockscan.superformula import SuperformulaParams
 
 STAR = shape_radii(SuperformulaParams(5, 5, 2, 7, 7), 360)
 BLUNT = shape_radii(PAPER_SHAPES["three-faced-blunt"], 360)

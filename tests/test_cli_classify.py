@@ -1,7 +1,7 @@
 """``rockscan classify`` (and ``rockscan match``): the public JSON contract, errors, exit codes.
 
 Every input kind and every bad input is checked twice: through click's
-CliRunner and through :func:`rockscan.pipeline.classify_path`.
+CliRunner and through :func:`rockscan.run.pipeline.classify_path`.
 """
 
 from __future__ import annotations
@@ -22,11 +22,12 @@ from PIL import Image
 from test_imageio import BAD_FILES, make_bad_file
 
 from rockscan.cli import main
+from rockscan.core.library import ShapeSpec
+from rockscan.core.render import RenderConfig, render_photo, render_scene
+from rockscan.core.superformula import SuperformulaParams
 from rockscan.io import write_spec
-from rockscan.library import ShapeSpec
-from rockscan.pipeline import classify_image, classify_path
-from rockscan.render import RenderConfig, render_photo, render_scene
-from rockscan.superformula import SuperformulaParams
+from rockscan.io.photos import write_photo
+from rockscan.run.pipeline import classify_image, classify_path
 
 SHAPES = {
     "three-faced-blunt": SuperformulaParams(6, 6, 60, 55, 10),
@@ -68,7 +69,7 @@ def rendered(tmp_path_factory):
     for i, (name, params) in enumerate(SHAPES.items()):
         photo = render_photo(params, RenderConfig(rows=240, cols=320, area_fraction=0.15), rng=i, name=name)
         path = folder / f"{name}.png"
-        photo.save(path)
+        write_photo(photo, path)
         out[name] = (str(path), photo.truth)
     return out
 
@@ -250,7 +251,7 @@ def test_all_classifies_every_rock_of_a_scene(tmp_path, seed):
         [SHAPES[n] for n in names], RenderConfig(area_fraction=0.05 * len(names)), rng=rng, names=names
     )
     path = tmp_path / "scene.png"
-    scene.save(path)
+    write_photo(scene, path)
     result = run("--json", "--all", str(path))
     assert result.exit_code == 0, result.output
     records = lines(result.stdout)
@@ -281,7 +282,7 @@ def make_bad(folder: Path, kind: str, monkeypatch: pytest.MonkeyPatch) -> tuple[
         return path, "no rock found"
     if kind == "no-rock":
         path = folder / "ground.jpg"
-        render_scene([], RenderConfig(rows=240, cols=320, ground_texture=0.0), rng=2).save(path)
+        write_photo(render_scene([], RenderConfig(rows=240, cols=320, ground_texture=0.0), rng=2), path)
         return path, "no rock found"
     assert kind == "unreadable"
     path = folder / "locked.png"
@@ -558,7 +559,7 @@ def test_every_command_takes_quiet_and_verbose():
 def test_verbose_logs_debug_lines_and_quiet_silences_info(rendered, tmp_path):
     path = rendered["teardrop"][0]
     verbose = run("-v", path)
-    assert verbose.exit_code == 0 and "rockscan: debug: rockscan.pipeline:" in verbose.stderr
+    assert verbose.exit_code == 0 and "rockscan: debug: rockscan.run.pipeline:" in verbose.stderr
     assert f"{path}: 1 rock(s)" in verbose.stderr
     assert run(path).stderr == ""
     # Before the command, for the whole run.

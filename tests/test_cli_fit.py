@@ -13,11 +13,11 @@ from conftest import PAPER_SHAPES
 from PIL import Image
 
 from rockscan.cli import main
+from rockscan.core.library import Library, ShapeSpec
+from rockscan.core.polar import polar_angles, recenter_radii
+from rockscan.core.render import render_photo
+from rockscan.core.superformula import SuperformulaParams, shape_radii
 from rockscan.io import read_spec, write_spec
-from rockscan.library import Library, ShapeSpec, shape_radii
-from rockscan.polar import polar_angles, recenter_radii
-from rockscan.render import render_photo
-from rockscan.superformula import SuperformulaParams
 
 EGG = SuperformulaParams(1, 1, 0.75, 0.75, 0.75)
 STAR5 = SuperformulaParams(5, 5, 2.0, 7.0, 7.0)

@@ -10,9 +10,8 @@ import pytest
 from click.testing import CliRunner
 
 from rockscan.cli import main
+from rockscan.core.superformula import SuperformulaParams, shape_radii
 from rockscan.io import default_spec_path, load_library
-from rockscan.library import shape_radii
-from rockscan.superformula import SuperformulaParams
 
 
 @pytest.fixture

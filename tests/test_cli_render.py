@@ -10,9 +10,9 @@ import pytest
 from click.testing import CliRunner
 
 from rockscan.cli import main
+from rockscan.core.render import RenderConfig, render_photo
 from rockscan.io import default_spec_path, read_image, read_spec
-from rockscan.pipeline import classify_path
-from rockscan.render import RenderConfig, render_photo
+from rockscan.run.pipeline import classify_path
 
 
 def render(*args: str):

@@ -1,7 +1,7 @@
 """Results do not depend on BLAS threads, nor on running in or out of process.
 
 rockscan holds BLAS to one thread inside its numeric entry points
-(rockscan/_threads.py), which makes the JSON of a photo the same bytes at any
+(rockscan/core/_threads.py), which makes the JSON of a photo the same bytes at any
 ``OPENBLAS_NUM_THREADS``; these tests hold it to that guarantee.
 """
 
@@ -17,12 +17,12 @@ import pytest
 from click.testing import CliRunner
 from threadpoolctl import threadpool_info, threadpool_limits
 
-from rockscan import _threads
 from rockscan.cli import main
-from rockscan.eigen import EigenBasis
-from rockscan.information import information_face
-from rockscan.library import shape_radii
-from rockscan.render import RenderConfig, render_photo
+from rockscan.core import _threads
+from rockscan.core.eigen import EigenBasis
+from rockscan.core.information import information_face
+from rockscan.core.render import RenderConfig, render_photo
+from rockscan.core.superformula import shape_radii
 
 pytestmark = pytest.mark.skipif(
     not any(lib["user_api"] == "blas" for lib in threadpool_info()),

@@ -8,8 +8,8 @@ from hypothesis import given
 from hypothesis import strategies as st
 from hypothesis.extra.numpy import arrays
 
-from rockscan.eigen import EigenBasis
-from rockscan.errors import ParameterError
+from rockscan.core.eigen import EigenBasis
+from rockscan.core.errors import ParameterError
 
 
 def _faces(rng, n=6, shape=(12, 5)):
@@ -155,10 +155,11 @@ def test_distances_to_some_shapes_only(rng):
 
 
 def test_large_build_helpers_equal_the_per_shape_ones(default_specs):
-    from rockscan.information import FaceConfig, information_face
-    from rockscan.library import _FaceTable, shape_radii, shapes_radii, symmetry_orders
-    from rockscan.polar import symmetry_order
-    from rockscan.render import random_superformula
+    from rockscan.core.information import FaceConfig, information_face
+    from rockscan.core.library import _FaceTable, shapes_radii, symmetry_orders
+    from rockscan.core.polar import symmetry_order
+    from rockscan.core.render import random_superformula
+    from rockscan.core.superformula import shape_radii
 
     params = [s.params for s in default_specs if s.params is not None]
     params += [random_superformula(np.random.default_rng(i)) for i in range(20)]
@@ -177,8 +178,8 @@ def test_large_build_helpers_equal_the_per_shape_ones(default_specs):
 
 
 def test_a_library_built_the_large_way_matches_its_own_shapes(default_specs):
-    from rockscan.library import Library
-    from rockscan.match import match_radii
+    from rockscan.core.library import Library
+    from rockscan.core.match import match_radii
 
     shapes = [s for s in default_specs if s.params is not None]
     large_way = Library.from_shapes(shapes, exact_limit=0, n_components=6)

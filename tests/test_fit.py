@@ -1,4 +1,4 @@
-"""Fitting Superformulas to outlines, and families of variants (rockscan.fit)."""
+"""Fitting Superformulas to outlines, and families of variants (rockscan.core.fit)."""
 
 from __future__ import annotations
 
@@ -11,24 +11,16 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from PIL import Image
 
-from rockscan.errors import ParameterError, SpecError
-from rockscan.fit import (
-    MAX_VARIANTS,
-    VARY_NAMES,
-    FitConfig,
-    FitResult,
-    family,
-    fit_superformula,
-    parse_vary,
-    plot_fits,
-    sanitize_name,
-)
+from rockscan.core.errors import ParameterError, SpecError
+from rockscan.core.family import MAX_VARIANTS, VARY_NAMES, family, parse_vary, sanitize_name
+from rockscan.core.fit import FitConfig, FitResult, fit_superformula
+from rockscan.core.library import NAME_PATTERN, Library, ShapeSpec
+from rockscan.core.polar import polar_angles, recenter_radii, rotate_radii, symmetry_order
+from rockscan.core.render import random_superformula, render_photo
+from rockscan.core.superformula import SuperformulaParams, shape_radii
+from rockscan.draw.fits import plot_fits
 from rockscan.io import default_spec_path, read_spec
-from rockscan.library import NAME_PATTERN, Library, ShapeSpec, shape_radii
-from rockscan.pipeline import classify_image, measure_rocks
-from rockscan.polar import polar_angles, recenter_radii, rotate_radii, symmetry_order
-from rockscan.render import random_superformula, render_photo
-from rockscan.superformula import SuperformulaParams
+from rockscan.run.pipeline import classify_image, measure_rocks
 
 EGG = SuperformulaParams(1, 1, 0.75, 0.75, 0.75)
 STAR5 = SuperformulaParams(5, 5, 2.0, 7.0, 7.0)

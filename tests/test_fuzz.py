@@ -20,7 +20,7 @@ import numpy as np
 import pytest
 from PIL import Image
 
-from rockscan.errors import ImageReadError
+from rockscan.core.errors import ImageReadError
 
 SCRIPT = Path(__file__).resolve().parents[1] / "scripts" / "fuzz_readers.py"
 EXAMPLES = int(os.environ.get("ROCKSCAN_FUZZ_EXAMPLES", "300"))

@@ -17,11 +17,11 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from PIL import Image, ImageOps
 
-from rockscan.errors import ImageReadError, ParameterError
+from rockscan.core.errors import ImageReadError, ParameterError
+from rockscan.core.render import RenderConfig, render_photo
+from rockscan.core.superformula import SuperformulaParams
 from rockscan.io import IMAGE_SUFFIXES, read_image
-from rockscan.pipeline import classify_path
-from rockscan.render import RenderConfig, render_photo
-from rockscan.superformula import SuperformulaParams
+from rockscan.run.pipeline import classify_path
 
 TEARDROP = SuperformulaParams(1, 1, 0.5, 0.5, 0.5)
 BLUNT = SuperformulaParams(6, 6, 60, 55, 10)
@@ -260,7 +260,7 @@ def test_eight_thousand_pixel_jpeg_classifies_in_bounded_memory(tmp_path):
         """
         import resource, sys
         from rockscan.io import default_library
-        from rockscan.pipeline import classify_path
+        from rockscan.run.pipeline import classify_path
         lib = default_library()
         result = classify_path(sys.argv[1], lib)
         assert result.ok, result.error

@@ -10,8 +10,8 @@ from hypothesis import given
 from hypothesis import strategies as st
 from scipy.stats import norm
 
-from rockscan.errors import ParameterError
-from rockscan.information import (
+from rockscan.core.errors import ParameterError
+from rockscan.core.information import (
     REFERENCE_RADIUS,
     FaceConfig,
     information_face,
@@ -23,8 +23,7 @@ from rockscan.information import (
     section_probabilities,
     shannon_bits,
 )
-from rockscan.library import shape_radii
-from rockscan.superformula import SuperformulaParams
+from rockscan.core.superformula import SuperformulaParams, shape_radii
 
 STAR = SuperformulaParams(6, 6, 0.2, 1.7, 1.7)
 EGG = SuperformulaParams(1, 1, 0.75, 0.75, 0.75)

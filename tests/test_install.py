@@ -13,7 +13,7 @@ def test_every_module_of_the_source_tree_is_importable():
     # Run against an installed copy, a module left out of the package list
     # would fail here (the console script imports rockscan.cli).
     names = {m.name for m in pkgutil.walk_packages(rockscan.__path__, "rockscan.")}
-    assert {"rockscan.cli", "rockscan.cli._classify", "rockscan.segment", "rockscan.triage"} <= names
+    assert {"rockscan.cli", "rockscan.cli._classify", "rockscan.core.segment", "rockscan.run.triage"} <= names
     for name in names:
         importlib.import_module(name)
 

@@ -13,11 +13,13 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from rockscan import _npzsafe
-from rockscan.errors import LibraryError, ParameterError, SpecError
-from rockscan.information import FaceConfig
+from rockscan.core.errors import LibraryError, ParameterError, SpecError
+from rockscan.core.information import FaceConfig
+from rockscan.core.library import Library
+from rockscan.core.match import match_radii
 from rockscan.io import (
     LIBRARY_VERSION,
+    _npzsafe,
     default_spec_path,
     load_library,
     parse_spec,
@@ -26,8 +28,6 @@ from rockscan.io import (
     save_library,
     write_spec,
 )
-from rockscan.library import Library
-from rockscan.match import match_radii
 
 
 def test_default_spec_is_shipped_and_valid(default_specs):

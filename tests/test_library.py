@@ -5,11 +5,11 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from rockscan.errors import LibraryError, ParameterError, SpecError
-from rockscan.information import FaceConfig
-from rockscan.library import Library, ShapeSpec, shape_radii
-from rockscan.polar import polygon_centroid_xy, radii_to_xy
-from rockscan.superformula import SuperformulaParams
+from rockscan.core.errors import LibraryError, ParameterError, SpecError
+from rockscan.core.information import FaceConfig
+from rockscan.core.library import Library, ShapeSpec
+from rockscan.core.polar import polygon_centroid_xy, radii_to_xy
+from rockscan.core.superformula import SuperformulaParams, shape_radii
 
 
 def test_default_library_has_the_papers_shapes_and_a_circle(default_lib):
@@ -48,7 +48,7 @@ def test_unbounded_superformula_is_refused():
 
 
 def test_faces_of_the_library_are_the_shapes_faces(paper_lib):
-    from rockscan.information import information_face
+    from rockscan.core.information import information_face
 
     np.testing.assert_allclose(paper_lib.faces(), information_face(paper_lib.radii), atol=1e-12)
 

@@ -8,12 +8,12 @@ from conftest import PAPER_NEAR, PAPER_SHAPES
 from hypothesis import given
 from hypothesis import strategies as st
 
-from rockscan.errors import ParameterError
-from rockscan.information import FaceConfig, information_face
-from rockscan.library import Library, ShapeSpec, shape_radii
-from rockscan.match import MatchConfig, match_radii, rotation_scores
-from rockscan.polar import polar_angles, recenter_radii
-from rockscan.superformula import SuperformulaParams
+from rockscan.core.errors import ParameterError
+from rockscan.core.information import FaceConfig, information_face
+from rockscan.core.library import Library, ShapeSpec
+from rockscan.core.match import MatchConfig, match_radii, rotation_scores
+from rockscan.core.polar import polar_angles, recenter_radii
+from rockscan.core.superformula import SuperformulaParams, shape_radii
 
 PAPER_EXACT = MatchConfig(metric="eigenspace", angle_metric="eigenspace")
 

@@ -7,9 +7,9 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from rockscan.errors import ParameterError
-from rockscan.measure import outline_sizes, polygon_moments, report_outline_xy
-from rockscan.outline import polygon_area_centroid, trace_outline
+from rockscan.core.errors import ParameterError
+from rockscan.core.measure import outline_sizes, polygon_moments, report_outline_xy
+from rockscan.core.outline import polygon_area_centroid, trace_outline
 
 
 def screen_signed_area(xy):

@@ -8,20 +8,20 @@ from conftest import PAPER_SHAPES
 from hypothesis import given
 from hypothesis import strategies as st
 
-from rockscan.errors import LibraryError, ParameterError
-from rockscan.information import FaceConfig, information_face
-from rockscan.io import load_library, save_library
-from rockscan.library import Library, ShapeSpec, shape_radii
-from rockscan.match import MatchConfig, match_radii
-from rockscan.novelty import (
+from rockscan.core.errors import LibraryError, ParameterError
+from rockscan.core.information import FaceConfig, information_face
+from rockscan.core.library import Library, ShapeSpec
+from rockscan.core.match import MatchConfig, match_radii
+from rockscan.core.novelty import (
     NoveltyConfig,
     ObservedShapes,
     default_threshold,
     observed_name,
 )
-from rockscan.pipeline import classify_image
-from rockscan.render import RenderConfig, random_superformula, render_photo
-from rockscan.superformula import SuperformulaParams
+from rockscan.core.render import RenderConfig, random_superformula, render_photo
+from rockscan.core.superformula import SuperformulaParams, shape_radii
+from rockscan.io import load_library, save_library
+from rockscan.run.pipeline import classify_image
 
 #: Shapes unlike every shape of the default library (novelty 0.46 to 0.62 at 360 rays).
 NEW_SHAPES = {

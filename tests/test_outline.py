@@ -8,9 +8,9 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from rockscan.errors import NoRockFoundError, ParameterError
-from rockscan.outline import polygon_area_centroid, trace_outline, work_to_photo
-from rockscan.polar import contour_radii, polar_angles
+from rockscan.core.errors import NoRockFoundError, ParameterError
+from rockscan.core.outline import polygon_area_centroid, trace_outline, work_to_photo
+from rockscan.core.polar import contour_radii, polar_angles
 
 
 def disc_coverage(shape, center_rowcol, radius, supersample=16):

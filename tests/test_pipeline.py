@@ -9,13 +9,14 @@ from hypothesis import given
 from hypothesis import strategies as st
 from PIL import Image
 
-from rockscan.errors import NoRockFoundError, ParameterError
+from rockscan.core.errors import NoRockFoundError, ParameterError
+from rockscan.core.outline import polygon_area_centroid
+from rockscan.core.render import RenderConfig, render_photo
+from rockscan.core.segment import SegmentConfig
+from rockscan.core.superformula import shape_radii
 from rockscan.io import default_spec_path, read_spec
-from rockscan.library import shape_radii
-from rockscan.outline import polygon_area_centroid
-from rockscan.pipeline import ClassifyConfig, align_radii, classify_image, classify_path, measure_rocks
-from rockscan.render import RenderConfig, render_photo
-from rockscan.segment import SegmentConfig
+from rockscan.io.photos import write_photo
+from rockscan.run.pipeline import ClassifyConfig, align_radii, classify_image, classify_path, measure_rocks
 
 SPECS = {s.name: s.params for s in read_spec(default_spec_path())}
 INTERFACE_KEYS = {"match", "nearest", "mscore", "distance", "angle_deg", "interesting", "centroid"}
@@ -47,7 +48,7 @@ def test_rendered_rocks_are_classified_with_angle_and_centroid(default_lib, name
 def test_records_hold_the_interface_keys(tmp_path, default_lib):
     photo = render_photo(SPECS["egg"], RenderConfig(rows=240, cols=320), rng=1, name="egg")
     path = tmp_path / "egg.png"
-    photo.save(path)
+    write_photo(photo, path)
     result = classify_path(path, default_lib)
     assert result.ok and result.error is None and len(result.rocks) == 1
     (record,) = result.records()
@@ -81,7 +82,7 @@ def test_a_photo_decoded_at_reduced_size_reports_full_size_pixels(default_lib):
 
 
 def test_all_rocks_come_back_main_first(default_lib):
-    from rockscan.render import render_scene
+    from rockscan.core.render import render_scene
 
     names = ["egg", "diamond", "pentagonal"]
     scene = render_scene([SPECS[n] for n in names], RenderConfig(area_fraction=0.18), rng=8, names=names)
@@ -154,7 +155,7 @@ def test_the_reported_outline_has_the_rocks_area_and_centroid(default_lib, name,
 
 
 def test_every_rock_of_a_scene_has_its_outline(default_lib):
-    from rockscan.render import render_scene
+    from rockscan.core.render import render_scene
 
     names = ["egg", "diamond", "pentagonal"]
     scene = render_scene([SPECS[n] for n in names], RenderConfig(area_fraction=0.18), rng=8, names=names)

@@ -7,12 +7,13 @@ import pytest
 from matplotlib.figure import Figure
 from PIL import Image
 
-from rockscan.errors import ParameterError
-from rockscan.information import FaceConfig
-from rockscan.io import default_library
-from rockscan.match import MatchConfig, match_radii
-from rockscan.pipeline import RockResult, classify_image
-from rockscan.plot import (
+from rockscan.core.errors import ParameterError, WriteError
+from rockscan.core.information import FaceConfig
+from rockscan.core.match import MatchConfig, match_radii
+from rockscan.core.polar import contour_radii
+from rockscan.core.render import RenderConfig, render_photo, render_scene
+from rockscan.core.superformula import SuperformulaParams
+from rockscan.draw.plot import (
     classification_figure,
     decision_tests,
     library_outline_rowcol,
@@ -20,9 +21,8 @@ from rockscan.plot import (
     plot_classification,
     plot_library,
 )
-from rockscan.polar import contour_radii
-from rockscan.render import RenderConfig, render_photo, render_scene
-from rockscan.superformula import SuperformulaParams
+from rockscan.io import default_library
+from rockscan.run.pipeline import RockResult, classify_image
 
 BLUNT = SuperformulaParams(6, 6, 60, 55, 10)
 SHARD = SuperformulaParams(3, 3, 0.7, 0.7, 0.7)
@@ -120,9 +120,9 @@ def test_plot_handles_sixteen_bit_gray_and_radii_faces(tmp_path):
     assert (tmp_path / "radii.png").stat().st_size > 10_000
 
 
-def test_plot_errors_are_one_line_parameter_errors(tmp_path, classified):
+def test_plot_errors_are_one_line_rockscan_errors(tmp_path, classified):
     photo, library, rocks = classified
-    with pytest.raises(ParameterError, match="cannot write the plot"):
+    with pytest.raises(WriteError, match="cannot write the plot"):
         plot_classification(photo.pixels, rocks, library, tmp_path / "missing" / "p.png")
     with pytest.raises(ParameterError, match="cannot write the plot"):
         plot_classification(photo.pixels, rocks, library, tmp_path / "p.unknown-format")

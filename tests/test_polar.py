@@ -7,9 +7,8 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from rockscan.errors import ParameterError
-from rockscan.library import shape_radii
-from rockscan.polar import (
+from rockscan.core.errors import ParameterError
+from rockscan.core.polar import (
     contour_radii,
     polar_angles,
     polygon_centroid_xy,
@@ -20,7 +19,7 @@ from rockscan.polar import (
     symmetry_order,
     xy_from_rowcol,
 )
-from rockscan.superformula import SuperformulaParams
+from rockscan.core.superformula import SuperformulaParams, shape_radii
 
 
 def test_angles_are_counter_clockwise_from_x():

@@ -5,10 +5,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from rockscan.information import FaceConfig, sample_term
-from rockscan.library import Library
-from rockscan.match import MatchConfig, match_radii, rotation_scores
-from rockscan.prefilter import Prefilter, features_of
+from rockscan.core.information import FaceConfig, sample_term
+from rockscan.core.library import Library
+from rockscan.core.match import MatchConfig, match_radii, rotation_scores
+from rockscan.core.prefilter import Prefilter, features_of
 
 #: Coarse faces (72 rays of 20 sections) keep a library of hundreds of shapes fast.
 SMALL_FACE = FaceConfig(n_angles=72, resolution=0.05)

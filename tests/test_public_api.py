@@ -43,8 +43,8 @@ def test_importing_the_package_and_cli_stays_light():
 def test_stage_modules_are_reachable_and_their_functions_too():
     import importlib
 
-    assert rockscan.segment.segment is importlib.import_module("rockscan.segment").segment
-    assert callable(rockscan.superformula.superformula)
+    assert rockscan.core.segment.segment is importlib.import_module("rockscan.core.segment").segment
+    assert callable(rockscan.core.superformula.superformula)
     # Importing a stage does not shadow the public names.
-    importlib.import_module("rockscan.pipeline")
+    importlib.import_module("rockscan.run.pipeline")
     assert not inspect.ismodule(rockscan.classify_image)

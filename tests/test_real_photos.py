@@ -19,9 +19,9 @@ from scipy import ndimage
 from skimage import data, filters, measure, segmentation
 
 from rockscan.cli import main
+from rockscan.core.segment import CONFIDENT_SCORE, segment
 from rockscan.io import data_path
-from rockscan.pipeline import classify_image, classify_path
-from rockscan.segment import CONFIDENT_SCORE, segment
+from rockscan.run.pipeline import classify_image, classify_path
 
 EXAMPLES = data_path("examples")
 

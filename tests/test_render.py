@@ -11,13 +11,13 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from scipy import ndimage
 
-from rockscan.errors import NoRockFoundError, ParameterError
+from rockscan.core.errors import NoRockFoundError, ParameterError, WriteError
+from rockscan.core.polar import polar_angles
+from rockscan.core.render import RenderConfig, random_superformula, render_photo, render_scene
+from rockscan.core.superformula import SuperformulaParams, shape_radii
 from rockscan.io import default_library, read_image
-from rockscan.library import shape_radii
-from rockscan.pipeline import classify_image
-from rockscan.polar import polar_angles
-from rockscan.render import RenderConfig, random_superformula, render_photo, render_scene
-from rockscan.superformula import SuperformulaParams
+from rockscan.io.photos import write_photo
+from rockscan.run.pipeline import classify_image
 
 TEARDROP = SuperformulaParams(1, 1, 0.5, 0.5, 0.5)
 STAR = PAPER_SHAPES["six-pointed-star"]
@@ -129,7 +129,7 @@ def test_every_format_writes_and_reads_back(tmp_path, suffix, color, depth):
     config = RenderConfig(rows=64, cols=80, color=color, bit_depth=depth, jpeg_quality=jpeg)
     photo = render_photo(STAR, config, rng=4)
     path = tmp_path / f"photo{suffix}"
-    photo.save(path)
+    write_photo(photo, path)
     image = read_image(path)
     assert image.bit_depth == depth
     # JPEG too: the photo's pixels are the decoded JPEG, as a reader sees them.
@@ -143,12 +143,12 @@ def test_sixteen_bit_photos_refuse_eight_bit_formats(suffix):
         photo.encode(suffix)
 
 
-def test_unknown_suffix_and_unwritable_path_are_parameter_errors(tmp_path):
+def test_unknown_suffix_is_a_parameter_error_and_unwritable_path_a_write_error(tmp_path):
     photo = render_photo(STAR, RenderConfig(rows=32, cols=32), rng=0)
     with pytest.raises(ParameterError, match=r"cannot write '\.gif'"):
         photo.encode(".gif")
-    with pytest.raises(ParameterError, match="cannot write the photo"):
-        photo.save(tmp_path / "no-such-folder" / "p.png")
+    with pytest.raises(WriteError, match="cannot write the photo"):
+        write_photo(photo, tmp_path / "no-such-folder" / "p.png")
 
 
 def _vertex_radii(photo, shape: SuperformulaParams, n: int) -> np.ndarray:

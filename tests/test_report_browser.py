@@ -23,10 +23,10 @@ import numpy as np
 import pytest
 from PIL import Image
 
+from rockscan.core.render import RenderConfig, render_photo
 from rockscan.io import default_spec_path, read_spec
-from rockscan.render import RenderConfig, render_photo
-from rockscan.report import read_provenance, read_rows
-from rockscan.triage import TriageConfig, triage_folder
+from rockscan.io.report import read_provenance, read_rows
+from rockscan.run.triage import TriageConfig, triage_folder
 
 pytestmark = pytest.mark.skipif(
     os.environ.get("ROCKSCAN_NO_BROWSER") == "1",

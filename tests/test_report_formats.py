@@ -13,11 +13,12 @@ import pytest
 from click.testing import CliRunner
 
 from rockscan.cli import main
+from rockscan.core.render import RenderConfig, render_photo, render_scene
+from rockscan.core.superformula import SuperformulaParams
 from rockscan.io import default_spec_path, read_spec
-from rockscan.pipeline import ClassifyConfig, classify_path
-from rockscan.render import RenderConfig, render_photo, render_scene
-from rockscan.report import CSV_COLUMNS, ROW_KEYS, ReportJournal, finalize_report, read_rows
-from rockscan.superformula import SuperformulaParams
+from rockscan.io.report import CSV_COLUMNS, ROW_KEYS, ReportJournal, read_rows
+from rockscan.run.pipeline import ClassifyConfig, classify_path
+from rockscan.run.report import finalize_report
 
 EXAMPLES = Path(__file__).resolve().parents[1] / "data" / "examples"
 

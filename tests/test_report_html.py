@@ -12,14 +12,14 @@ import pytest
 from PIL import Image
 from skimage.color import rgb2lab
 
+from rockscan.core.render import RenderConfig, render_photo
+from rockscan.core.superformula import SuperformulaParams
+from rockscan.draw.plot import library_outline_rowcol
+from rockscan.draw.sheet import LOW_SEGMENTATION_SCORE, OUTLINE_RGB, SHAPE_RGB, photo_href, render_html
 from rockscan.io import default_spec_path, read_spec
-from rockscan.pipeline import classify_path
-from rockscan.plot import library_outline_rowcol
-from rockscan.render import RenderConfig, render_photo
-from rockscan.report import read_rows
-from rockscan.report_html import LOW_SEGMENTATION_SCORE, OUTLINE_RGB, SHAPE_RGB, photo_href, render_html
-from rockscan.superformula import SuperformulaParams
-from rockscan.triage import TriageConfig, triage_folder
+from rockscan.io.report import read_rows
+from rockscan.run.pipeline import classify_path
+from rockscan.run.triage import TriageConfig, triage_folder
 
 #: A textured 640 x 480 photo is a realistic thumbnail to measure.
 REALISTIC = RenderConfig(rows=480, cols=640, rock_texture=0.08, ground_texture=0.08, pebbles=30)

@@ -13,13 +13,14 @@ import pytest
 from click.testing import CliRunner
 
 from rockscan.cli import main
+from rockscan.core.library import Library
+from rockscan.core.match import MatchConfig
+from rockscan.core.render import RenderConfig, render_photo
 from rockscan.io import default_spec_path, load_library, read_spec, save_library
-from rockscan.library import Library
-from rockscan.match import MatchConfig
-from rockscan.pipeline import ClassifyConfig
-from rockscan.render import RenderConfig, render_photo
-from rockscan.report import ReportSettingsError, journal_path, read_provenance, read_rows
-from rockscan.triage import TriageConfig, library_hash, report_provenance, triage_folder
+from rockscan.io.report import ReportSettingsError, journal_path, read_provenance, read_rows
+from rockscan.run.pipeline import ClassifyConfig
+from rockscan.run.provenance import library_hash, report_provenance
+from rockscan.run.triage import TriageConfig, triage_folder
 
 FORMATS = (".csv", ".jsonl", ".html", ".geojson")
 
@@ -71,7 +72,7 @@ def test_the_library_hash_is_its_content_in_every_process(tmp_path, default_lib)
     save_library(default_lib, path)
     assert library_hash(load_library(path)) == library_hash(default_lib)
     code = (
-        "from rockscan.io import default_library; from rockscan.triage import library_hash; "
+        "from rockscan.io import default_library; from rockscan.run.triage import library_hash; "
         "print(library_hash(default_library()))"
     )
     for threads in ("1", "2"):

@@ -23,13 +23,12 @@ import pytest
 from click.testing import CliRunner
 from PIL import Image
 
-from rockscan import _imageio
 from rockscan.cli import BROKEN_PIPE_STATUS, main
-from rockscan.errors import ImageReadError, ParameterError
+from rockscan.core.errors import ImageReadError, ParameterError
+from rockscan.core.render import MAX_RENDER_PIXELS, RenderConfig, render_photo
+from rockscan.core.superformula import SuperformulaParams, shape_radii
+from rockscan.io import photos as _imageio
 from rockscan.io import read_image
-from rockscan.library import shape_radii
-from rockscan.render import MAX_RENDER_PIXELS, RenderConfig, render_photo
-from rockscan.superformula import SuperformulaParams
 
 BLUNT = SuperformulaParams(6, 6, 60, 55, 10)
 

@@ -311,7 +311,7 @@ def test_crop_choice_is_the_region_under_the_centre():
 
 
 def test_segmentation_labels_fill_the_pipelines_outline_at_photo_resolution():
-    from rockscan.segment import segment
+    from rockscan.core.segment import segment
 
     scene = scenes.make_scene("plain", 1)
     labels = bench.segmentation_labels(segment(scene.image), scene.image.shape[:2])
@@ -320,7 +320,7 @@ def test_segmentation_labels_fill_the_pipelines_outline_at_photo_resolution():
 
 
 def test_evaluate_scores_a_segmenter_that_finds_nothing():
-    from rockscan.errors import NoRockFoundError
+    from rockscan.core.errors import NoRockFoundError
 
     def nothing(pixels, *, all_rocks):
         raise NoRockFoundError("no rock found")

@@ -19,9 +19,9 @@ import pytest
 from conftest import PAPER_NEAR, PAPER_SHAPES
 from PIL import Image
 
-from rockscan.information import sample_term
-from rockscan.library import shape_radii
-from rockscan.polar import polar_angles
+from rockscan.core.information import sample_term
+from rockscan.core.polar import polar_angles
+from rockscan.core.superformula import shape_radii
 
 SCRIPTS = Path(__file__).resolve().parents[1] / "scripts"
 FIGURES = (

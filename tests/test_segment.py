@@ -9,12 +9,12 @@ from hypothesis import given
 from hypothesis import strategies as st
 from skimage.draw import polygon2mask
 
-from rockscan.errors import NoRockFoundError, ParameterError
+from rockscan.core.errors import NoRockFoundError, ParameterError
+from rockscan.core.polar import polar_angles
+from rockscan.core.render import RenderConfig, render_photo
+from rockscan.core.segment import SegmentConfig, segment, to_gray
 from rockscan.io import default_spec_path, read_spec
-from rockscan.pipeline import measure_rocks
-from rockscan.polar import polar_angles
-from rockscan.render import RenderConfig, render_photo
-from rockscan.segment import SegmentConfig, segment, to_gray
+from rockscan.run.pipeline import measure_rocks
 
 SPECS = {s.name: s.params for s in read_spec(default_spec_path())}
 

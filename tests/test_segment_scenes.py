@@ -19,7 +19,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "scripts"))
 import bench_segment
 import scenes
 
-from rockscan.segment import segment
+from rockscan.core.segment import segment
 
 #: Photos per condition: the first seeds of the development part.
 N_PHOTOS = 1

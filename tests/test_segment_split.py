@@ -12,11 +12,11 @@ import numpy as np
 import pytest
 from test_segment import coverage, photo_of
 
-import rockscan.pipeline
-from rockscan._seg_score import outline_evidence, outline_score
-from rockscan._seg_split import split_necks, split_rocks, territories
-from rockscan.pipeline import classify_image, measure_rocks
-from rockscan.segment import CONFIDENT_SCORE, segment
+import rockscan.run.pipeline
+from rockscan.core.segment import CONFIDENT_SCORE, segment
+from rockscan.core.segment.score import outline_evidence, outline_score
+from rockscan.core.segment.split import split_necks, split_rocks, territories
+from rockscan.run.pipeline import classify_image, measure_rocks
 
 # ---------------------------------------------------------------- touching rocks
 
@@ -141,7 +141,7 @@ def test_a_rock_below_the_confident_score_is_never_interesting(monkeypatch, defa
     assert rock.match.interesting and rock.match.match == "circle"
     assert rock.segmentation_score == segment(pixels).rocks[0].score
     # The same rock, judged against a bar its outline cannot reach.
-    monkeypatch.setattr(rockscan.pipeline, "CONFIDENT_SCORE", 1.01)
+    monkeypatch.setattr(rockscan.run.pipeline, "CONFIDENT_SCORE", 1.01)
     rock = classify_image(pixels, default_lib)[0]
     assert not rock.match.interesting and rock.match.match is None
     assert rock.match.nearest == "circle"

@@ -12,13 +12,13 @@ from hypothesis import strategies as st
 from PIL import Image
 
 from rockscan.cli import main
-from rockscan.errors import SpecError
-from rockscan.information import FaceConfig, information_face
+from rockscan.core.errors import SpecError
+from rockscan.core.information import FaceConfig, information_face
+from rockscan.core.library import ShapeSpec
+from rockscan.core.render import RenderConfig, render_photo
+from rockscan.core.superformula import SuperformulaParams, shape_radii
 from rockscan.io import read_spec, write_spec
-from rockscan.library import ShapeSpec, shape_radii
-from rockscan.pipeline import classify_image, library_from_spec, measure_rocks
-from rockscan.render import RenderConfig, render_photo
-from rockscan.superformula import SuperformulaParams
+from rockscan.run.pipeline import classify_image, library_from_spec, measure_rocks
 
 STAR5 = SuperformulaParams(5, 5, 2.0, 7.0, 7.0)
 EGG = SuperformulaParams(1, 1, 0.75, 0.75, 0.75)

@@ -7,8 +7,8 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from rockscan.errors import ParameterError
-from rockscan.superformula import SuperformulaParams, superformula
+from rockscan.core.errors import ParameterError
+from rockscan.core.superformula import SuperformulaParams, superformula
 
 
 def _direct(theta, m1, m2, n1, n2, n3, a=1.0, b=1.0):

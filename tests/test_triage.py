@@ -27,29 +27,16 @@ from hypothesis import strategies as st
 from PIL import Image
 
 from rockscan.cli import main
-from rockscan.errors import ParameterError
+from rockscan.core.errors import ParameterError
+from rockscan.core.render import RenderConfig, render_photo
+from rockscan.core.superformula import SuperformulaParams
 from rockscan.io import default_spec_path, load_library, read_spec
-from rockscan.render import RenderConfig, render_photo
-from rockscan.report import (
-    CSV_COLUMNS,
-    ROW_KEYS,
-    ReportJournal,
-    finalize_report,
-    rank_key,
-    read_provenance,
-    read_rows,
-)
-from rockscan.superformula import SuperformulaParams
-from rockscan.triage import (
-    PhotoOutcome,
-    TriageConfig,
-    _ProcessBackend,
-    _run_backend,
-    find_photos,
-    interest_score,
-    triage_folder,
-    triage_row,
-)
+from rockscan.io.folders import find_photos
+from rockscan.io.report import CSV_COLUMNS, ROW_KEYS, ReportJournal, rank_key, read_provenance, read_rows
+from rockscan.run.backends import _ProcessBackend, _run_backend
+from rockscan.run.photo import PhotoOutcome
+from rockscan.run.report import finalize_report
+from rockscan.run.triage import TriageConfig, interest_score, triage_folder, triage_row
 
 N_PHOTOS = 50
 CLASSIFY_KEYS = (
@@ -434,7 +421,7 @@ def test_an_interrupted_run_keeps_complete_ranked_rows_and_resumes(folder, refer
 
 def test_a_bug_on_one_photo_becomes_an_error_row(tmp_path, default_lib, monkeypatch):
     photos = _render_folder(tmp_path / "photos", 3)
-    import rockscan.triage as triage_module
+    import rockscan.run.photo as triage_module
 
     real = triage_module.classify_path
 

@@ -17,11 +17,11 @@ import pytest
 from click.testing import CliRunner
 
 from rockscan.cli import main
-from rockscan.errors import ParameterError
+from rockscan.core.errors import ParameterError
+from rockscan.core.render import RenderConfig, render_photo
 from rockscan.io import default_spec_path, read_spec
-from rockscan.render import RenderConfig, render_photo
-from rockscan.report import ReportJournal, journal_path, lock_report, read_rows
-from rockscan.triage import TriageConfig, triage_folder
+from rockscan.io.report import ReportJournal, journal_path, lock_report, read_rows
+from rockscan.run.triage import TriageConfig, triage_folder
 
 CLI = "import sys; from rockscan.cli import main; sys.argv[0] = 'rockscan'; main()"
 #: Guards against a hang only; no test measures time.
@@ -159,8 +159,8 @@ def test_a_scheduler_address_that_cannot_work_is_one_clear_line(photos, tmp_path
     code = f"""
 import sys
 from rockscan.io import default_library
-from rockscan.triage import TriageConfig, triage_folder
-from rockscan.errors import ParameterError
+from rockscan.run.triage import TriageConfig, triage_folder
+from rockscan.core.errors import ParameterError
 for i, address in enumerate(["nonsense://x:1", "tls://127.0.0.1:9", "inproc://x", "tcp://127.0.0.1:9"]):
     try:
         triage_folder({str(photos)!r}, f"{tmp_path}/r{{i}}.csv", default_library(),

@@ -10,7 +10,15 @@ from typing import Any
 
 import click
 
-from rockscan.cli import _errors, _library_option, _load_library, _match_options, _px_per_mm_option, log, main
+from rockscan.cli._main import (
+    _errors,
+    _library_option,
+    _load_library,
+    _match_options,
+    _px_per_mm_option,
+    log,
+    main,
+)
 
 # ---------------------------------------------------------------- match (no photo)
 
@@ -45,11 +53,10 @@ def match_cmd(
     as_json: bool,
 ) -> None:
     """Match an outline given as Superformula parameters or radii, without a photo."""
+    from rockscan.core.match import match_radii
+    from rockscan.core.polar import resample_radii, rotate_radii
+    from rockscan.core.superformula import SuperformulaParams, shape_radii
     from rockscan.io import read_radii
-    from rockscan.library import shape_radii
-    from rockscan.match import match_radii
-    from rockscan.polar import resample_radii, rotate_radii
-    from rockscan.superformula import SuperformulaParams
 
     if (params_text is None) == (radii_path is None):
         raise click.UsageError("give exactly one of --params or --radii")
@@ -128,8 +135,8 @@ def classify(
     Exit status: 0 when every photo was classified, 1 when any could not be,
     2 for usage errors.
     """
-    from rockscan.errors import RockscanError
-    from rockscan.pipeline import ClassifyConfig, classify_path
+    from rockscan.core.errors import RockscanError
+    from rockscan.run.pipeline import ClassifyConfig, classify_path
 
     photos = _expand_stdin(photos)
     targets = _plot_targets(plot_path, photos, overwrite=overwrite) if plot_path else {}
@@ -188,8 +195,8 @@ def _expand_stdin(photos: tuple[str, ...]) -> tuple[str, ...]:
 
 
 def _plot(photo: str, rocks: Any, lib: Any, target: str, config: Any) -> None:
+    from rockscan.draw.plot import plot_classification
     from rockscan.io import read_image
-    from rockscan.plot import plot_classification
 
     # The plot needs no more detail than the segmentation saw: read reduced.
     image = read_image(photo, max_side=2 * config.segment.work_size)

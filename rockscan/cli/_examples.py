@@ -7,7 +7,7 @@ import shutil
 
 import click
 
-from rockscan.cli import _errors, log, main
+from rockscan.cli._main import _errors, log, main
 
 #: Photo file endings among the examples (the rest are their truth and notes).
 _PHOTO_ENDINGS = (".png", ".jpg", ".jpeg", ".tif", ".tiff", ".bmp")
@@ -25,7 +25,7 @@ def examples_cmd(folder: str, overwrite: bool) -> None:
     FOLDER is created if needed; files already there are left alone unless
     --overwrite is given.
     """
-    from rockscan.errors import ParameterError
+    from rockscan.core.errors import ParameterError
     from rockscan.io import data_path
 
     source = data_path("examples")

@@ -10,8 +10,8 @@ from typing import Any
 
 import click
 
-from rockscan.cli import _errors
 from rockscan.cli._library import library
+from rockscan.cli._main import _errors
 
 #: Rays an outline is measured at (the library's default).
 _N_ANGLES = 360
@@ -67,10 +67,12 @@ def library_fit(
     Exit status: 0 when every input was fitted, 1 when any could not be, 2 for
     usage errors.
     """
-    from rockscan.errors import RockscanError
-    from rockscan.fit import fit_superformula, plot_fits, sanitize_name
+    from rockscan.core.errors import RockscanError
+    from rockscan.core.family import sanitize_name
+    from rockscan.core.fit import fit_superformula
+    from rockscan.core.library import ShapeSpec
+    from rockscan.draw.fits import plot_fits
     from rockscan.io import read_spec, write_spec
-    from rockscan.library import ShapeSpec
 
     if append and output is None:
         raise click.UsageError("--append needs -o SPEC (the spec to add the shapes to)")
@@ -127,9 +129,9 @@ def library_fit(
 
 def _outline_radii(path: str) -> Any:
     """Radii about the centroid of a photo's main rock, or of a radii file."""
+    from rockscan.core.segment import SegmentConfig
     from rockscan.io import IMAGE_SUFFIXES, read_image, read_radii
-    from rockscan.pipeline import measure_rocks
-    from rockscan.segment import SegmentConfig
+    from rockscan.run.pipeline import measure_rocks
 
     if Path(path).suffix.lower() not in IMAGE_SUFFIXES:
         return read_radii(path)
@@ -206,8 +208,8 @@ def library_family(
     \b
     Example: rockscan library family lib.toml egg --vary n1=0.8:1.2:5 --vary n23=0.9,1.1 -o fam.toml
     """
-    from rockscan.errors import ParameterError, SpecError
-    from rockscan.fit import family, parse_vary
+    from rockscan.core.errors import ParameterError, SpecError
+    from rockscan.core.family import family, parse_vary
     from rockscan.io import read_spec, write_spec
 
     vary = []

@@ -7,8 +7,11 @@ import os
 
 import click
 
-from rockscan._choices import DEFAULT_TOLERANCE, FACE_KINDS, GRIDS
-from rockscan.cli import DEFAULT_LIBRARY_NAME, _errors, _load_library, log, main
+from rockscan.cli._main import DEFAULT_LIBRARY_NAME, _errors, _load_library, config_option, log, main
+from rockscan.core.choices import DEFAULT_TOLERANCE, FACE_KINDS, GRIDS
+
+#: Where the face options take their defaults.
+FACE = "rockscan.core.information.FaceConfig"
 
 # ---------------------------------------------------------------- library
 
@@ -23,12 +26,12 @@ def library() -> None:
 @click.option(
     "-o", "--output", required=True, type=click.Path(dir_okay=False), help="Library file to write (.npz)."
 )
-@click.option(
+@config_option(
     "--face",
     "face_kind",
     type=click.Choice(FACE_KINDS),
-    default="information",
-    show_default=True,
+    config=FACE,
+    field="kind",
     help="Face kind: the paper's variants 1 and 2, or plain radii.",
 )
 @click.option(
@@ -36,24 +39,24 @@ def library() -> None:
     default=None,
     help="For --face information-shape: name of the spec shape to compare against.",
 )
-@click.option(
-    "--sigma", type=float, default=0.1, show_default=True, help="Sensor model standard deviation (map units)."
+@config_option(
+    "--sigma", type=float, config=FACE, field="sigma", help="Sensor model standard deviation (map units)."
 )
-@click.option(
-    "--n-angles", type=int, default=360, show_default=True, help="Rays per shape (rotation step 360/n)."
+@config_option(
+    "--n-angles", type=int, config=FACE, field="n_angles", help="Rays per shape (rotation step 360/n)."
 )
-@click.option(
+@config_option(
     "--resolution",
     type=float,
-    default=0.02,
-    show_default=True,
+    config=FACE,
+    field="resolution",
     help="Section length along a ray (map units).",
 )
-@click.option(
+@config_option(
     "--grid",
     type=click.Choice(GRIDS),
-    default="polar",
-    show_default=True,
+    config=FACE,
+    field="grid",
     help="'cartesian' is the paper's grid map (slower; for reproduction).",
 )
 @click.option(
@@ -81,10 +84,10 @@ def library_build(
     tolerance: float,
 ) -> None:
     """Build a library file from a spec (TOML with [[shape]] tables), with cutoffs calibrated for it."""
-    from rockscan.errors import SpecError
-    from rockscan.information import FaceConfig
+    from rockscan.core.errors import SpecError
+    from rockscan.core.information import FaceConfig
     from rockscan.io import read_spec, save_library
-    from rockscan.pipeline import library_from_spec
+    from rockscan.run.pipeline import library_from_spec
 
     shapes = read_spec(spec)
     ref_params = None
@@ -175,7 +178,7 @@ def library_show(lib: str, plot_path: str | None, as_json: bool) -> None:
                 f"{cutoffs[i]:7.3g} {gap}  {text}{mark}"
             )
     if plot_path:
-        from rockscan.plot import plot_library
+        from rockscan.draw.plot import plot_library
 
         plot_library(library_obj, plot_path)
         log.info("drew %s", plot_path)

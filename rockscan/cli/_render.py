@@ -5,13 +5,18 @@ from __future__ import annotations
 import json
 import os
 import re
+from typing import TYPE_CHECKING
 
 import click
 
-from rockscan._choices import RENDER_POLARITIES
-from rockscan.cli import _errors, _progress, log, main
+from rockscan.cli._main import _errors, _progress, config_option, log, main
+from rockscan.core.choices import RENDER_POLARITIES
 
-# ---------------------------------------------------------------- render
+if TYPE_CHECKING:
+    from rockscan.core.render import RenderConfig
+
+#: Where the render options take their defaults.
+RENDER = "rockscan.core.render.RenderConfig"
 
 
 @main.command("render")
@@ -43,9 +48,11 @@ from rockscan.cli import _errors, _progress, log, main
 @click.option(
     "--seed", type=int, default=0, show_default=True, help="Random seed; the same seed draws the same photos."
 )
-@click.option("--size", default="480x640", show_default=True, help="Photo size ROWSxCOLS.")
-@click.option(
-    "--area", type=float, default=0.12, show_default=True, help="Rock area as a fraction of the frame."
+@config_option(
+    "--size", config=RENDER, field=("rows", "cols"), convert="{}x{}".format, help="Photo size ROWSxCOLS."
+)
+@config_option(
+    "--area", type=float, config=RENDER, field="area_fraction", help="Rock area as a fraction of the frame."
 )
 @click.option("--angle", type=float, default=None, help="Rotation in degrees (default: random).")
 @click.option(
@@ -55,46 +62,46 @@ from rockscan.cli import _errors, _progress, log, main
     show_default=True,
     help="Rock lighter or darker than the ground.",
 )
-@click.option(
+@config_option(
     "--contrast",
     type=float,
-    default=0.35,
-    show_default=True,
+    config=RENDER,
+    field="contrast",
     help="Brightness difference of rock and ground (0 to 1).",
 )
-@click.option(
-    "--rock-texture", type=float, default=0.04, show_default=True, help="Amplitude of the rock's texture."
+@config_option(
+    "--rock-texture", type=float, config=RENDER, field="rock_texture", help="Amplitude of the rock's texture."
 )
-@click.option(
+@config_option(
     "--ground-texture",
     type=float,
-    default=0.04,
-    show_default=True,
+    config=RENDER,
+    field="ground_texture",
     help="Amplitude of the ground's texture.",
 )
-@click.option(
+@config_option(
     "--pebbles",
     type=click.IntRange(min=0),
-    default=0,
-    show_default=True,
+    config=RENDER,
+    field="pebbles",
     help="Pebbles scattered on the ground.",
 )
-@click.option("--gradient", type=float, default=0.2, show_default=True, help="Lighting gradient strength.")
-@click.option("--shadow", type=float, default=0.0, show_default=True, help="Shadow darkness, 0 to 1.")
-@click.option("--noise", type=float, default=0.02, show_default=True, help="Pixel noise standard deviation.")
-@click.option("--blur", type=float, default=0.8, show_default=True, help="Gaussian blur sigma, pixels.")
+@config_option("--gradient", type=float, config=RENDER, field="gradient", help="Lighting gradient strength.")
+@config_option("--shadow", type=float, config=RENDER, field="shadow", help="Shadow darkness, 0 to 1.")
+@config_option("--noise", type=float, config=RENDER, field="noise", help="Pixel noise standard deviation.")
+@config_option("--blur", type=float, config=RENDER, field="blur", help="Gaussian blur sigma, pixels.")
 @click.option(
     "--jpeg", "jpeg_quality", type=int, default=None, help="Write JPEG at this quality (default: PNG)."
 )
-@click.option(
+@config_option(
     "--outline-noise",
     type=float,
-    default=0.0,
-    show_default=True,
+    config=RENDER,
+    field="outline_noise",
     help="Radial noise: each radius times 1+e, e ~ N(0, this) (paper Fig. 11).",
 )
 @click.option("--gray", is_flag=True, help="Gray photos instead of colour.")
-@click.option("--bits", type=click.Choice(["8", "16"]), default="8", show_default=True)
+@config_option("--bits", type=click.Choice(["8", "16"]), config=RENDER, field="bit_depth", convert=str)
 @click.option(
     "--format",
     "fmt",
@@ -141,20 +148,15 @@ def render_cmd(
     Photo i is named NNNN-SHAPE.EXT and its truth NNNN-SHAPE.json: rotation,
     scale, position, centroid, polarity, symmetry and every render setting.
     The same --seed draws the same photos; photo i alone is
-    rockscan.render.render_photo(params, config, rng=[seed, i]).
+    rockscan.core.render.render_numbered(shapes, config, seed=seed, index=i).
     A folder that holds an earlier render is refused, unless --overwrite,
     which first removes that render's photos and truth (other files stay).
     """
-    import numpy as np
-
-    from rockscan.errors import ParameterError
+    from rockscan.core.render import render_numbered
     from rockscan.io import default_spec_path, read_spec
-    from rockscan.render import RenderConfig, render_photo, render_scene
+    from rockscan.io.atomic import write_bytes_atomic
+    from rockscan.io.photos import write_photo
 
-    try:
-        rows, cols = (int(v) for v in size.lower().split("x"))
-    except ValueError:
-        raise click.BadParameter("must be ROWSxCOLS, e.g. 480x640", param_hint="--size") from None
     shapes = [s for s in read_spec(spec or default_spec_path()) if s.params is not None]
     if shape_names:
         unknown = set(shape_names) - {s.name for s in shapes}
@@ -163,31 +165,58 @@ def render_cmd(
         shapes = [s for s in shapes if s.name in shape_names]
     if not shapes:
         raise click.UsageError("the spec has no Superformula shapes to draw")
-    try:
-        config = RenderConfig(
-            rows=rows,
-            cols=cols,
-            area_fraction=area,
-            angle_deg=angle,
-            rock_lighter=None if polarity == "random" else polarity == "light",
-            contrast=contrast,
-            rock_texture=rock_texture,
-            ground_texture=ground_texture,
-            pebbles=pebbles,
-            gradient=gradient,
-            shadow=shadow,
-            noise=noise,
-            blur=blur,
-            jpeg_quality=jpeg_quality,
-            outline_noise=outline_noise,
-            color=not gray,
-            bit_depth=int(bits),
-        )
-    except ParameterError as exc:
-        raise click.UsageError(str(exc)) from None
+    config = _render_config(
+        size,
+        area_fraction=area,
+        angle_deg=angle,
+        rock_lighter=None if polarity == "random" else polarity == "light",
+        contrast=contrast,
+        rock_texture=rock_texture,
+        ground_texture=ground_texture,
+        pebbles=pebbles,
+        gradient=gradient,
+        shadow=shadow,
+        noise=noise,
+        blur=blur,
+        jpeg_quality=jpeg_quality,
+        outline_noise=outline_noise,
+        color=not gray,
+        bit_depth=int(bits),
+    )
     suffix = "." + (fmt or ("jpg" if jpeg_quality else "png"))
     if suffix in (".jpg", ".bmp") and config.bit_depth == 16:
         raise click.UsageError(f"{suffix[1:].upper()} photos are 8 bits; use --bits 8 or --format png/tif")
+    _prepare_folder(out_dir, overwrite)
+    named = [(s.name, s.params) for s in shapes]
+    total = count if count is not None else len(shapes)
+    for i in _progress(range(total), total, unit="photo", verb="rendered"):
+        stem, photo = render_numbered(named, config, seed=seed, index=i, rocks=rocks)
+        write_photo(photo, os.path.join(out_dir, stem + suffix))
+        truth = {"photo": stem + suffix, "seed": seed, "index": i, **photo.truth}
+        text = json.dumps(truth, indent=1)
+        write_bytes_atomic(os.path.join(out_dir, stem + ".json"), text.encode("utf-8"), what="the truth")
+    log.info("wrote %d photos with truth (seed %d) to %s", total, seed, out_dir)
+
+
+def _render_config(size: str, **settings: object) -> RenderConfig:
+    """The render settings of the options, or a usage error naming the bad one."""
+    from rockscan.core.errors import ParameterError
+    from rockscan.core.render import RenderConfig
+
+    try:
+        rows, cols = (int(v) for v in size.lower().split("x"))
+    except ValueError:
+        raise click.BadParameter("must be ROWSxCOLS, e.g. 480x640", param_hint="--size") from None
+    try:
+        return RenderConfig(rows=rows, cols=cols, **settings)
+    except ParameterError as exc:
+        raise click.UsageError(str(exc)) from None
+
+
+def _prepare_folder(out_dir: str, overwrite: bool) -> None:
+    """Make the output folder; remove an earlier render's photos if ``overwrite``, else refuse them."""
+    from rockscan.core.errors import WriteError
+
     earlier = _earlier_render(out_dir)
     if earlier and not overwrite:
         raise click.UsageError(
@@ -199,28 +228,9 @@ def render_cmd(
         for name in earlier:
             os.remove(os.path.join(out_dir, name))
     except OSError as exc:
-        raise ParameterError(f"{out_dir}: cannot prepare the folder ({exc.strerror or exc})") from None
+        raise WriteError(f"{out_dir}: cannot prepare the folder ({exc.strerror or exc})") from None
     if earlier:
         log.info("removed the %d photos of an earlier render from %s", len(earlier) // 2, out_dir)
-    total = count if count is not None else len(shapes)
-    for i in _progress(range(total), total, unit="photo", verb="rendered"):
-        rng = np.random.default_rng([seed, i])
-        if rocks == 1:
-            shape = shapes[i % len(shapes)]
-            photo = render_photo(shape.params, config, rng=rng, name=shape.name)
-            stem = f"{i:04d}-{shape.name}"
-        else:
-            chosen = [shapes[int(j)] for j in rng.integers(0, len(shapes), rocks)]
-            photo = render_scene([s.params for s in chosen], config, rng=rng, names=[s.name for s in chosen])
-            stem = f"{i:04d}-scene"
-        photo.save(os.path.join(out_dir, stem + suffix))
-        truth = {"photo": stem + suffix, "seed": seed, "index": i, **photo.truth}
-        try:
-            with open(os.path.join(out_dir, stem + ".json"), "w", encoding="utf-8") as fh:
-                json.dump(truth, fh, indent=1)
-        except OSError as exc:
-            raise ParameterError(f"{out_dir}: cannot write the truth ({exc.strerror or exc})") from None
-    log.info("wrote %d photos with truth (seed %d) to %s", total, seed, out_dir)
 
 
 #: A rendered photo's truth file: NNNN-NAME.json.

@@ -12,8 +12,7 @@ from typing import Any
 
 import click
 
-from rockscan._choices import NOVELTY_METRICS
-from rockscan.cli import (
+from rockscan.cli._main import (
     _errors,
     _fail,
     _library_option,
@@ -22,6 +21,7 @@ from rockscan.cli import (
     _px_per_mm_option,
     main,
 )
+from rockscan.core.choices import NOVELTY_METRICS
 
 
 @main.command("triage")
@@ -131,10 +131,10 @@ def triage(
     (or the run could not go on), 2 for a usage error (resuming with other
     settings included), 130 when interrupted.
     """
-    from rockscan.novelty import NoveltyConfig
-    from rockscan.pipeline import ClassifyConfig
-    from rockscan.report import ReportSettingsError
-    from rockscan.triage import TriageConfig, triage_folder
+    from rockscan.core.novelty import NoveltyConfig
+    from rockscan.io.report import ReportSettingsError
+    from rockscan.run.pipeline import ClassifyConfig
+    from rockscan.run.triage import TriageConfig, triage_folder
 
     if workers is not None and scheduler is not None:
         raise click.UsageError("give -j/--workers or --scheduler, not both")
@@ -143,8 +143,8 @@ def triage(
     if resume and report_path is None:
         raise click.UsageError("--resume needs the report to continue: -o REPORT")
     if report_path is not None:
-        from rockscan.errors import ParameterError
-        from rockscan.report import report_format
+        from rockscan.core.errors import ParameterError
+        from rockscan.io.report import report_format
 
         try:
             report_format(report_path)
@@ -250,7 +250,7 @@ class _Progress:
         self._bar.update(done - self._bar.n)
 
     def error(self, row: dict[str, Any]) -> None:
-        from rockscan.report import shown_text
+        from rockscan.io.report import shown_text
 
         self.errors += 1
         message = row["error"]
@@ -268,7 +268,7 @@ class _Progress:
 
 
 def _print_summary(summary: Any, folder: str, *, to_stderr: bool) -> None:
-    from rockscan.report import shown_text
+    from rockscan.io.report import shown_text
 
     def echo(text: str = "") -> None:
         # Names that are not UTF-8 or hold control characters print escaped.

@@ -1,0 +1,319 @@
+"""Outline -> polar radii, and the one place where image and polar coordinates meet.
+
+Arrays stay in scikit-image's (row, col) order. The public interface's polar
+frame is made here and nowhere else: for a pixel at (col, row) and a centroid
+(cx, cy), ``x = col - cx``, ``y = cy - row`` (y points up, as the photo is seen on
+screen) and ``theta = atan2(y, x)``, counter-clockwise from the +x axis.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from rockscan.core.errors import ParameterError
+
+__all__ = [
+    "contour_radii",
+    "polar_angles",
+    "polygon_area_centroid",
+    "polygon_centroid_xy",
+    "radii_to_xy",
+    "recenter_radii",
+    "rotate_radii",
+    "rowcol_from_xy",
+    "symmetry_order",
+    "xy_from_rowcol",
+]
+
+
+def polar_angles(n_angles: int) -> NDArray[np.float64]:
+    """The matcher's ray angles: ``2*pi*i/n_angles`` for ``i = 0 .. n_angles-1``.
+
+    Parameters
+    ----------
+    n_angles : int
+        Number of rays; at least 8.
+
+    Returns
+    -------
+    theta : (n_angles,) ndarray of float
+        Angles in radians, counter-clockwise from +x.
+    """
+    n_angles = _check_n_angles(n_angles)
+    return 2.0 * np.pi * np.arange(n_angles) / n_angles
+
+
+def xy_from_rowcol(rowcol: ArrayLike, centroid_rowcol: ArrayLike) -> NDArray[np.float64]:
+    """Convert (row, col) points to the interface's (x, y) about a centroid.
+
+    Parameters
+    ----------
+    rowcol : (n, 2) array_like of float
+        Points as (row, col) pixel coordinates.
+    centroid_rowcol : (2,) array_like of float
+        Centroid as (row, col).
+
+    Returns
+    -------
+    xy : (n, 2) ndarray of float
+        ``x = col - cx`` (right) and ``y = cy - row`` (up).
+    """
+    rowcol = np.asarray(rowcol, dtype=np.float64).reshape(-1, 2)
+    cy, cx = np.asarray(centroid_rowcol, dtype=np.float64)
+    return np.column_stack([rowcol[:, 1] - cx, cy - rowcol[:, 0]])
+
+
+def rowcol_from_xy(xy: ArrayLike, centroid_rowcol: ArrayLike) -> NDArray[np.float64]:
+    """Inverse of :func:`xy_from_rowcol`: (x, y) about a centroid to (row, col)."""
+    xy = np.asarray(xy, dtype=np.float64).reshape(-1, 2)
+    cy, cx = np.asarray(centroid_rowcol, dtype=np.float64)
+    return np.column_stack([cy - xy[:, 1], xy[:, 0] + cx])
+
+
+def contour_radii(
+    contour_rowcol: ArrayLike, centroid_rowcol: ArrayLike, n_angles: int
+) -> NDArray[np.float64]:
+    """Polar radii of a closed outline about a centroid, at the matcher's angles.
+
+    Parameters
+    ----------
+    contour_rowcol : (n_points, 2) array_like of float
+        Closed outline as (row, col) vertices; the last vertex joins the first.
+    centroid_rowcol : (2,) array_like of float
+        Centre of the rays, (row, col).
+    n_angles : int
+        Number of rays, at the angles of :func:`polar_angles`.
+
+    Returns
+    -------
+    radii : (n_angles,) ndarray of float
+        Distance in pixels from the centroid to the outline along each ray.
+
+    Notes
+    -----
+    A ray that crosses the outline more than once (a concave or hooked rock)
+    takes its **farthest** crossing: the outer envelope seen from the centroid.
+    Deep bays hidden behind a nearer part of the rock then do not make the
+    radius jump inward, and the result does not depend on where the outline
+    starts. A ray that crosses nothing (the centroid outside a crescent) gets 0.
+
+    Each segment is intersected only with the rays inside its angular span, so
+    the cost is linear in the number of vertices plus crossings.
+    """
+    n_angles = _check_n_angles(n_angles)
+    xy = xy_from_rowcol(contour_rowcol, centroid_rowcol)
+    if len(xy) < 3 or not np.all(np.isfinite(xy)):
+        raise ParameterError("contour_rowcol needs at least 3 finite (row, col) vertices")
+    p = xy
+    q = np.roll(xy, -1, axis=0)
+    step = 2.0 * np.pi / n_angles
+    phi_p = np.arctan2(p[:, 1], p[:, 0])
+    span = np.angle(np.exp(1j * (np.arctan2(q[:, 1], q[:, 0]) - phi_p)))
+    lo = np.minimum(phi_p, phi_p + span)
+    hi = np.maximum(phi_p, phi_p + span)
+    first = np.ceil(lo / step - 1e-9).astype(np.int64)
+    count = np.maximum(np.floor(hi / step + 1e-9).astype(np.int64) - first + 1, 0)
+    seg = np.repeat(np.arange(len(p)), count)
+    offsets = np.arange(seg.size) - np.repeat(np.cumsum(count) - count, count)
+    ray = first[seg] + offsets
+    theta = ray * step
+    d = np.column_stack([np.cos(theta), np.sin(theta)])
+    e = q[seg] - p[seg]
+    denom = d[:, 0] * e[:, 1] - d[:, 1] * e[:, 0]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        t = (p[seg, 0] * e[:, 1] - p[seg, 1] * e[:, 0]) / denom
+    # A ray grazing a segment (denom ~ 0) meets it at its nearer end's distance.
+    graze = ~np.isfinite(t) | (np.abs(denom) < 1e-12)
+    t[graze] = np.minimum(np.hypot(*p[seg[graze]].T), np.hypot(*q[seg[graze]].T))
+    radii = np.zeros(n_angles)
+    np.maximum.at(radii, np.mod(ray, n_angles), np.maximum(t, 0.0))
+    return radii
+
+
+def radii_to_xy(radii: ArrayLike, angle_deg: float = 0.0) -> NDArray[np.float64]:
+    """Outline points (x, y) of radii sampled at :func:`polar_angles`.
+
+    Parameters
+    ----------
+    radii : (n_angles,) array_like of float
+        Radius along each ray.
+    angle_deg : float, optional
+        Turn the outline counter-clockwise by this angle.
+
+    Returns
+    -------
+    xy : (n_angles, 2) ndarray of float
+    """
+    radii = np.asarray(radii, dtype=np.float64)
+    theta = polar_angles(radii.size) + np.deg2rad(angle_deg)
+    return np.column_stack([radii * np.cos(theta), radii * np.sin(theta)])
+
+
+def polygon_area_centroid(points: ArrayLike) -> tuple[float, NDArray[np.float64]]:
+    """Area and area centroid of a simple closed polygon (shoelace formula).
+
+    Parameters
+    ----------
+    points : (n, 2) array_like of float
+        Vertices in order, as (x, y) or (row, col); the last joins the first.
+
+    Returns
+    -------
+    area : float
+        Enclosed area, positive whatever the orientation.
+    centroid : (2,) ndarray of float
+        In the coordinates given; the vertex mean when the polygon has no area.
+    """
+    pts = np.asarray(points, dtype=np.float64)
+    u, v = pts[:, 0], pts[:, 1]
+    u1, v1 = np.roll(u, -1), np.roll(v, -1)
+    cross = u * v1 - u1 * v
+    signed = cross.sum() / 2.0
+    if abs(signed) < 1e-12:
+        return 0.0, pts.mean(axis=0)
+    centroid = np.array([((u + u1) * cross).sum(), ((v + v1) * cross).sum()]) / (6.0 * signed)
+    return abs(float(signed)), centroid
+
+
+def polygon_centroid_xy(xy: ArrayLike) -> NDArray[np.float64]:
+    """Area centroid of a simple closed polygon given as (x, y) vertices.
+
+    Parameters
+    ----------
+    xy : (n, 2) array_like of float
+        Vertices in order; the last joins the first.
+
+    Returns
+    -------
+    centroid : (2,) ndarray of float
+        The vertex mean when the polygon has no area.
+    """
+    return polygon_area_centroid(xy)[1]
+
+
+def recenter_radii(radii: ArrayLike) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """Re-sample radii about the outline's own area centroid.
+
+    A photo's radii are measured about the rock's centroid, so library shapes are
+    put in the same frame: a Superformula's origin is not its centroid when the
+    shape is not point-symmetric.
+
+    Parameters
+    ----------
+    radii : (n_angles,) array_like of float
+        Radii about some origin, at :func:`polar_angles`.
+
+    Returns
+    -------
+    radii_centered : (n_angles,) ndarray of float
+        Radii about the area centroid, same angles.
+    offset_xy : (2,) ndarray of float
+        Where the centroid lies in the original frame.
+    """
+    radii = np.asarray(radii, dtype=np.float64)
+    xy = radii_to_xy(radii)
+    # A dense outline keeps the re-sampled radii exact to well below a pixel.
+    fine = 8
+    t = np.arange(fine) / fine
+    dense = xy[:, None, :] * (1 - t)[None, :, None] + np.roll(xy, -1, axis=0)[:, None, :] * t[None, :, None]
+    dense = dense.reshape(-1, 2)
+    centroid = polygon_centroid_xy(xy)
+    rowcol = np.column_stack([-dense[:, 1], dense[:, 0]])
+    centered = contour_radii(rowcol, [-centroid[1], centroid[0]], radii.size)
+    return centered, centroid
+
+
+def rotate_radii(radii: ArrayLike, angle_deg: float) -> NDArray[np.float64]:
+    """Turn an outline counter-clockwise by ``angle_deg``, exactly, via Fourier.
+
+    Parameters
+    ----------
+    radii : (n_angles,) array_like of float
+        Radii at :func:`polar_angles`.
+    angle_deg : float
+        Counter-clockwise turn, degrees.
+
+    Returns
+    -------
+    turned : (n_angles,) ndarray of float
+        ``r(theta_i - alpha)``: exact for band-limited radii, and an exact
+        circular shift for whole multiples of the ray step.
+    """
+    radii = np.asarray(radii, dtype=np.float64)
+    n = radii.size
+    shift = angle_deg / 360.0 * n
+    if abs(shift - round(shift)) < 1e-9:
+        return np.roll(radii, int(np.round(shift)))
+    spectrum = np.fft.rfft(radii)
+    freq = np.arange(spectrum.size)
+    phase = np.exp(-2j * np.pi * freq * shift / n)
+    if n % 2 == 0:
+        # The Nyquist term of a real signal cannot carry a phase; keep it real.
+        phase[-1] = np.cos(np.pi * shift)
+    return np.fft.irfft(spectrum * phase, n=n)
+
+
+def resample_radii(radii: ArrayLike, n_angles: int) -> NDArray[np.float64]:
+    """Radii sampled at other equal angles, by periodic linear interpolation.
+
+    Parameters
+    ----------
+    radii : (n,) array_like of float
+        Radii at ``2*pi*i/n``, i = 0 .. n-1.
+    n_angles : int
+        Number of rays wanted.
+
+    Returns
+    -------
+    resampled : (n_angles,) ndarray of float
+        Radii at :func:`polar_angles` ``(n_angles)``.
+    """
+    radii = np.asarray(radii, dtype=np.float64)
+    if radii.ndim != 1 or radii.size < 3:
+        raise ParameterError("radii must be a 1-D array of at least 3 values")
+    position = np.arange(_check_n_angles(n_angles)) * radii.size / n_angles
+    return np.interp(position, np.arange(radii.size), radii, period=radii.size)
+
+
+def symmetry_order(radii: ArrayLike, *, tol: float = 1e-4, max_order: int = 36) -> int:
+    """Order of rotational symmetry of an outline, read from its radii.
+
+    Parameters
+    ----------
+    radii : (n_angles,) array_like of float
+        Radii at :func:`polar_angles`.
+    tol : float, optional
+        Largest fraction of the radii's non-constant energy allowed at Fourier
+        harmonics that are not multiples of the order.
+    max_order : int, optional
+        Largest order tried.
+
+    Returns
+    -------
+    order : int
+        The largest k such that turning the outline by 360/k degrees leaves it
+        unchanged (1 for no symmetry), or 0 for a circle (every angle fits).
+
+    Notes
+    -----
+    A k-fold symmetric curve has Fourier harmonics only at multiples of k. The
+    order is read from the radii, never from the Superformula's m: with m/4
+    inside the formula an odd m does not give an m-fold curve.
+    """
+    radii = np.asarray(radii, dtype=np.float64)
+    energy = np.abs(np.fft.rfft(radii)[1:]) ** 2
+    total = energy.sum()
+    if total <= (1e-9 * radii.mean()) ** 2 * radii.size**2:
+        return 0
+    harmonic = np.arange(1, energy.size + 1)
+    for k in range(min(max_order, energy.size), 1, -1):
+        if energy[harmonic % k != 0].sum() <= tol * total:
+            return k
+    return 1
+
+
+def _check_n_angles(n_angles: int) -> int:
+    if isinstance(n_angles, bool) or int(n_angles) != n_angles or n_angles < 8:
+        raise ParameterError(f"n_angles must be an integer >= 8, got {n_angles!r}")
+    return int(n_angles)

@@ -1,0 +1,260 @@
+"""Library files: numpy ``.npz`` archives read with ``allow_pickle=False``.
+
+Plain arrays plus a UTF-8 JSON ``metadata`` record that names the format and
+its version. Anything else is rejected with a one-line :class:`LibraryError`.
+Archives are read through :mod:`rockscan.io._npzsafe`, which checks every
+member's size before anything is inflated.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import os
+import warnings
+import zipfile
+import zlib
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+import numpy as np
+from numpy.typing import NDArray
+
+from rockscan._version import __version__
+from rockscan.core.errors import LibraryError, ParameterError
+from rockscan.core.superformula import SuperformulaParams
+from rockscan.io._npzsafe import SafeNpz
+
+if TYPE_CHECKING:
+    from rockscan.core.library import Library
+
+from rockscan.core.errors import first_line as _first_line
+from rockscan.io.atomic import atomic_file
+
+LIBRARY_FORMAT = "rockscan-library"
+LIBRARY_VERSION = 2
+#: The first format version whose files say whether they carry cutoffs: every
+#: version-2 file has a "calibration" record, null for a library saved without
+#: them by design (an observed library: novelty has its own threshold).
+_CALIBRATED_VERSION = 2
+
+_ARRAYS = ("radii", "interest", "symmetry", "mean", "components", "eigenvalues", "weights")
+#: Per-shape calibration arrays (absent from files written before cutoffs were stored).
+_CUTOFF_ARRAYS = ("cutoffs", "cutoff_spacing", "cutoff_crowded", "cutoff_calibrated")
+
+
+def save_library(library: Library, path: str | os.PathLike[str]) -> None:
+    """Write a library file (``.npz`` with JSON metadata; no pickle).
+
+    Parameters
+    ----------
+    library : Library
+    path : path-like
+        File to write. It is written to a temporary name and renamed, so an
+        interrupted save never leaves a half-written library behind.
+
+    Raises
+    ------
+    WriteError
+        If the file cannot be written.
+    """
+    metadata = {
+        "format": LIBRARY_FORMAT,
+        "version": LIBRARY_VERSION,
+        "rockscan": __version__,
+        "names": list(library.names),
+        "params": [p.as_dict() if p is not None else None for p in library.params],
+        "face": library.face_config.to_dict(),
+    }
+    cutoff_arrays = {}
+    metadata["calibration"] = None
+    if library.calibration is not None:
+        cal = library.calibration
+        metadata["calibration"] = cal.to_dict()
+        cutoff_arrays = dict(
+            zip(_CUTOFF_ARRAYS, (cal.cutoffs, cal.spacing, cal.crowded, cal.calibrated), strict=True)
+        )
+    arrays = {
+        "metadata": np.frombuffer(json.dumps(metadata).encode("utf-8"), dtype=np.uint8),
+        "radii": library.radii,
+        "interest": library.interest,
+        "symmetry": library.symmetry,
+        "mean": library.basis.mean,
+        "components": library.basis.components,
+        "eigenvalues": library.basis.eigenvalues,
+        "weights": library.basis.weights,
+        **cutoff_arrays,
+    }
+    with atomic_file(path, what="library") as fh:
+        np.savez(fh, **arrays)
+
+
+def load_library(path: str | os.PathLike[str]) -> Library:
+    """Read a library file written by :func:`save_library`.
+
+    Parameters
+    ----------
+    path : path-like
+
+    Returns
+    -------
+    Library
+
+    Raises
+    ------
+    LibraryError
+        With a one-line reason if the file is missing, truncated, corrupt,
+        not a rockscan library, of a newer format version, or inconsistent.
+    """
+    path = Path(path)
+    if not path.exists():
+        raise LibraryError(f"{path}: library file not found")
+    if path.is_dir():
+        raise LibraryError(f"{path}: is a folder, not a library file")
+    raw, arrays = _read_archive(path)
+    meta = _library_metadata(raw, path)
+    version = meta.get("version")
+    if not isinstance(version, int) or version < 1:
+        raise LibraryError(f"{path}: library metadata has no valid format version")
+    if version > LIBRARY_VERSION:
+        raise LibraryError(
+            f"{path}: library format version {version} is newer than this rockscan reads "
+            f"({LIBRARY_VERSION}); upgrade rockscan"
+        )
+    library = _library_from(meta, arrays, path)
+    if library.calibration is None and version < _CALIBRATED_VERSION:
+        from rockscan.core.calibrate import calibrate
+
+        # A file from before cutoffs were stored: its shapes are all that is
+        # needed to calibrate them as `library build` now does.
+        warnings.warn(
+            f"{path}: written before libraries stored their cutoffs; calibrated them now at the default "
+            "tolerance (rebuild it with `rockscan library build` to store them)",
+            RecalibratedWarning,
+            stacklevel=2,
+        )
+        calibration = calibrate(library.radii)
+        library = dataclasses.replace(
+            library, calibration=dataclasses.replace(calibration, note="calibrated when loaded")
+        )
+    return library
+
+
+def _read_archive(path: Path) -> tuple[NDArray, dict[str, NDArray]]:
+    """The metadata record and the arrays of a library file, each checked before it is inflated."""
+    try:
+        with open(path, "rb") as fh:
+            magic = fh.read(6)
+            if not magic:
+                raise LibraryError(f"{path}: file is empty, not a rockscan library")
+            if magic.startswith(b"\x93NUMPY"):
+                raise LibraryError(
+                    f"{path}: not a rockscan library (a bare numpy array, not an .npz archive)"
+                )
+            if not magic.startswith(b"PK"):
+                raise LibraryError(f"{path}: not a rockscan library (not an .npz archive)")
+            fh.seek(0)
+            with SafeNpz(fh, str(path)) as archive:
+                missing = [k for k in ("metadata", *_ARRAYS) if k not in archive.files]
+                if missing:
+                    raise LibraryError(f"{path}: not a rockscan library (missing {', '.join(missing)})")
+                raw = archive["metadata"]
+                arrays = {k: archive[k] for k in _ARRAYS}
+                arrays.update({k: archive[k] for k in _CUTOFF_ARRAYS if k in archive.files})
+    except LibraryError:
+        raise
+    except (zipfile.BadZipFile, zlib.error, EOFError) as exc:
+        raise LibraryError(f"{path}: library file is truncated or corrupt ({_first_line(exc)})") from None
+    except (ValueError, OSError, AttributeError, KeyError) as exc:
+        raise LibraryError(f"{path}: not a rockscan library file ({_first_line(exc)})") from None
+    return raw, arrays
+
+
+def _library_from(meta: dict[str, object], arrays: dict[str, NDArray], path: Path) -> Library:
+    """The library a file's metadata and arrays describe, or a one-line LibraryError."""
+    from rockscan.core.eigen import EigenBasis
+    from rockscan.core.information import FaceConfig
+    from rockscan.core.library import Library
+
+    try:
+        params = [SuperformulaParams(**p) if p is not None else None for p in meta["params"]]
+        face = FaceConfig.from_dict(meta["face"])
+        basis = EigenBasis(
+            mean=arrays["mean"],
+            components=arrays["components"],
+            eigenvalues=arrays["eigenvalues"],
+            weights=arrays["weights"],
+        )
+        for name in ("mean", "components", "weights"):
+            if not np.all(np.isfinite(getattr(basis, name))):
+                raise LibraryError(f"library {name} holds non-finite values")
+        library = Library(
+            names=_library_names(meta, path),
+            radii=arrays["radii"],
+            params=tuple(params),
+            interest=arrays["interest"],
+            symmetry=arrays["symmetry"],
+            face_config=face,
+            basis=basis,
+            calibration=_read_calibration(meta, arrays, path),
+        )
+    except ParameterError as exc:
+        raise LibraryError(f"{path}: library cutoffs are inconsistent ({_first_line(exc)})") from None
+    except (KeyError, TypeError, ValueError, OverflowError) as exc:
+        raise LibraryError(f"{path}: library file is inconsistent ({_first_line(exc)})") from None
+    return library
+
+
+class RecalibratedWarning(UserWarning):
+    """A library file without stored cutoffs was calibrated when it was loaded."""
+
+
+def _read_calibration(meta: dict[str, object], arrays: dict[str, NDArray], path: Path) -> object:
+    """The stored calibration, or None for a file written before cutoffs were stored."""
+    from rockscan.core.calibrate import Calibration
+
+    info = meta.get("calibration")
+    if info is None:
+        return None
+    missing = [k for k in _CUTOFF_ARRAYS if k not in arrays]
+    if not isinstance(info, dict) or missing:
+        what = ", ".join(missing) or "settings"
+        raise LibraryError(f"{path}: library cutoffs are incomplete (missing {what})")
+    return Calibration(
+        cutoffs=arrays["cutoffs"],
+        spacing=arrays["cutoff_spacing"],
+        crowded=arrays["cutoff_crowded"],
+        calibrated=arrays["cutoff_calibrated"],
+        tolerance=float(info["tolerance"]),
+        seed=int(info.get("seed", 0)),
+        version=int(info.get("version", 1)),
+        note=str(info.get("note", "")),
+    )
+
+
+def _library_metadata(raw: object, path: Path) -> dict[str, object]:
+    """The metadata record of a library file, checked to be a JSON object of the format."""
+    if not isinstance(raw, np.ndarray) or raw.dtype != np.uint8 or raw.ndim != 1:
+        raise LibraryError(f"{path}: not a rockscan library (bad metadata record)")
+    try:
+        meta = json.loads(raw.tobytes().decode("utf-8"))
+    except (UnicodeDecodeError, ValueError, RecursionError):
+        raise LibraryError(f"{path}: library metadata is corrupt") from None
+    if not isinstance(meta, dict):
+        raise LibraryError(f"{path}: not a rockscan library (metadata is not a JSON object)")
+    if meta.get("format") != LIBRARY_FORMAT:
+        raise LibraryError(f"{path}: not a rockscan library (format is {meta.get('format')!r})")
+    return meta
+
+
+def _library_names(meta: dict[str, object], path: Path) -> tuple[str, ...]:
+    """Shape names of a library file, held to the rule spec names follow."""
+    from rockscan.core.library import NAME_PATTERN
+
+    names = meta.get("names")
+    if not isinstance(names, list):
+        raise LibraryError(f"{path}: library metadata has no list of shape names")
+    for name in names:
+        if not isinstance(name, str) or not NAME_PATTERN.match(name):
+            raise LibraryError(f"{path}: shape name {name!r} must match [a-z0-9-]+")
+    return tuple(names)

@@ -1,0 +1,149 @@
+"""Library specs: the TOML files that name a library's shapes.
+
+A spec lists shapes by Superformula parameters or by example photos
+(``images = [...]``); ``rockscan library build`` turns one into a library file.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import tomllib
+from collections.abc import Sequence
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+from rockscan.core.errors import ParameterError, SpecError
+from rockscan.core.superformula import SuperformulaParams
+
+if TYPE_CHECKING:
+    from rockscan.core.library import ShapeSpec
+
+from rockscan.io.atomic import write_bytes_atomic
+
+_SHAPE_KEYS = {"name", "interest", "images", *SuperformulaParams.names()}
+
+
+def read_spec(path: str | os.PathLike[str]) -> list[ShapeSpec]:
+    """Read a library spec (TOML, ``[[shape]]`` tables; see the interface).
+
+    Parameters
+    ----------
+    path : path-like
+
+    Returns
+    -------
+    shapes : list of ShapeSpec
+        Example image paths are made absolute, relative to the spec's folder.
+
+    Raises
+    ------
+    SpecError
+        On unreadable files, TOML errors, unknown keys or impossible shapes.
+    """
+    path = Path(path)
+    try:
+        text = path.read_text(encoding="utf-8")
+    except FileNotFoundError:
+        raise SpecError(f"{path}: spec file not found") from None
+    except (OSError, UnicodeDecodeError) as exc:
+        raise SpecError(f"{path}: cannot read spec ({exc})") from None
+    try:
+        data = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        raise SpecError(f"{path}: not valid TOML ({exc})") from None
+    return parse_spec(data, base=path.parent, source=str(path))
+
+
+def parse_spec(data: dict[str, object], *, base: Path | None = None, source: str = "spec") -> list[ShapeSpec]:
+    """Turn parsed TOML (``{"shape": [{...}, ...]}``) into shapes; see :func:`read_spec`."""
+    from rockscan.core.library import ShapeSpec
+
+    shapes = data.get("shape")
+    if not isinstance(shapes, list) or not shapes:
+        raise SpecError(f"{source}: a spec needs [[shape]] tables (see the README)")
+    out: list[ShapeSpec] = []
+    seen: set[str] = set()
+    for i, entry in enumerate(shapes, start=1):
+        if not isinstance(entry, dict):
+            raise SpecError(f"{source}: shape {i} is not a table")
+        name = entry.get("name")
+        where = f"{source}: shape {name!r}" if isinstance(name, str) else f"{source}: shape {i}"
+        unknown = set(entry) - _SHAPE_KEYS
+        if unknown:
+            raise SpecError(f"{where}: unknown keys {', '.join(sorted(unknown))}")
+        if isinstance(name, str) and name in seen:
+            raise SpecError(f"{where}: the name is used twice")
+        images = entry.get("images", ())
+        if not isinstance(images, (list, tuple)) or not all(isinstance(x, str) for x in images):
+            raise SpecError(f"{where}: images must be a list of file paths")
+        param_keys = set(SuperformulaParams.names()) & set(entry)
+        try:
+            params = None
+            if param_keys or not images:
+                missing = {"m1", "m2", "n1", "n2", "n3"} - set(entry)
+                if missing:
+                    raise SpecError(f"missing {', '.join(sorted(missing))}")
+                params = SuperformulaParams(**{k: entry[k] for k in SuperformulaParams.names() if k in entry})
+            paths = tuple(
+                str((base / p) if base is not None and not Path(p).is_absolute() else p) for p in images
+            )
+            shape = ShapeSpec(name=name, params=params, interest=entry.get("interest", 1.0), images=paths)
+        except (ParameterError, SpecError) as exc:
+            raise SpecError(f"{where}: {exc}") from None
+        seen.add(shape.name)
+        out.append(shape)
+    return out
+
+
+def write_spec(shapes: Sequence[ShapeSpec], path: str | os.PathLike[str] | None = None) -> str:
+    """Write shapes as a spec (TOML).
+
+    Parameters
+    ----------
+    shapes : sequence of ShapeSpec
+    path : path-like, optional
+        File to write (atomically). None only returns the text.
+
+    Returns
+    -------
+    text : str
+        The spec, readable by :func:`read_spec`.
+    """
+    lines: list[str] = []
+    for shape in shapes:
+        lines.append("[[shape]]")
+        lines.append(f'name = "{shape.name}"')
+        if shape.params is not None:
+            for key, value in shape.params.as_dict().items():
+                lines.append(f"{key} = {_toml_float(value)}")
+        if shape.images:
+            listed = ", ".join(_toml_string(p) for p in shape.images)
+            lines.append(f"images = [{listed}]")
+        if shape.interest != 1.0:
+            lines.append(f"interest = {_toml_float(shape.interest)}")
+        lines.append("")
+    text = "\n".join(lines)
+    if path is not None:
+        write_bytes_atomic(path, text.encode("utf-8"), what="spec")
+    return text
+
+
+def _toml_string(text: str) -> str:
+    """A TOML basic string. JSON's escapes are not TOML's: JSON writes a character
+    beyond U+FFFF as a surrogate pair, which TOML refuses, and leaves U+007F bare."""
+    out = []
+    for ch in text:
+        code = ord(ch)
+        if ch in '"\\':
+            out.append("\\" + ch)
+        elif (code < 0x20 and ch != "\t") or code == 0x7F:
+            out.append(f"\\u{code:04x}")
+        else:
+            out.append(ch)
+    return '"' + "".join(out) + '"'
+
+
+def _toml_float(value: float) -> str:
+    text = repr(float(value))
+    return text if math.isfinite(value) else ("inf" if value > 0 else "-inf")
