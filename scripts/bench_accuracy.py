@@ -219,7 +219,7 @@ def methods(cutoffs: dict[str, dict[str, float]] | None = None) -> dict[str, Met
     return {
         "rockscan default": rockscan_method(info, MatchConfig()),
         "paper exact (eigenspace/eigenspace)": rockscan_method(
-            info, MatchConfig(metric="eigenspace", angle_metric="eigenspace")
+            info, MatchConfig.paper()
         ),
         face: rockscan_method(info, MatchConfig(metric="face", angle_metric="face", **own(face))),
         "Hu moments (cv2.matchShapes)": baseline_method(HuMomentsMatcher.from_library(info)),
@@ -277,7 +277,7 @@ def run_benchmark(
                 if not rocks:
                     tally.failed += 1
                     continue
-                outline, radii = rocks[0]
+                outline, radii = rocks[0].outline, rocks[0].radii
                 out = method(radii, outline.contour_rowcol)
                 tally.seconds += out.seconds
                 if out.interesting is not None:

@@ -53,7 +53,7 @@ from rockscan.core.render import random_superformula
 from rockscan.core.superformula import shape_radii
 
 ROOT = Path(__file__).resolve().parents[1]
-PAPER = MatchConfig(metric="eigenspace", angle_metric="eigenspace")
+PAPER = MatchConfig.paper()
 THREAD_VARIABLES = ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS")
 ONE_ROTATION = "one rotation, direct projection"
 ONE_MATCH = "match_radii, scan=False"
@@ -129,7 +129,7 @@ def cycle(functions: Sequence[Callable[[], object]]) -> Callable[[], object]:
 
 def _one_rotation(library: Library, radii: np.ndarray) -> Callable[[], object]:
     q = sample_term(radii, library.face_config)
-    weights = library.weights_map
+    weights = library.reference_map
     return lambda: library.basis.distances(weights * q)
 
 

@@ -186,7 +186,7 @@ def photo_outline(radii: np.ndarray, noise: float, rng: np.random.Generator) -> 
     config = RenderConfig(area_fraction=float(rng.uniform(0.05, 0.4)), outline_noise=noise)
     photo = render_photo(resample_radii(radii, N_ANGLES), config, rng=rng)
     try:
-        return measure_rocks(photo.pixels, N_ANGLES)[1][0][1]
+        return measure_rocks(photo.pixels, N_ANGLES)[1][0].radii
     except RockscanError:
         return None
 

@@ -98,7 +98,7 @@ def warm_fits(settings: Settings) -> dict[str, float]:
     for i in range(settings.n_speed):
         photo = render_photo(random_superformula(rng), rng=rng)
         start = time.perf_counter()
-        radii = measure_rocks(photo.pixels, settings.n_angles)[1][0][1]
+        radii = measure_rocks(photo.pixels, settings.n_angles)[1][0].radii
         measure_times.append(time.perf_counter() - start)
         start = time.perf_counter()
         fit_superformula(radii, rng=i)
@@ -147,7 +147,7 @@ def accuracy(settings: Settings) -> list[dict[str, object]]:
         for i in range(settings.n_shapes):
             params = random_superformula(rng)
             photo = render_photo(params, rng=rng)
-            radii = measure_rocks(photo.pixels, settings.n_angles)[1][0][1]
+            radii = measure_rocks(photo.pixels, settings.n_angles)[1][0].radii
             fit = fit_superformula(radii, rng=i)
             truth = true_curve(params, photo.truth["angle_deg"], settings.n_angles)
             fit_err.append(rms_percent(fit.curve(settings.n_angles), truth))
@@ -174,7 +174,7 @@ def library_from_examples(settings: Settings) -> dict[str, object]:
     rng = np.random.default_rng(2718)
     fitted = []
     for spec in specs:
-        radii = measure_rocks(render_photo(spec.params, rng=rng).pixels, settings.n_angles)[1][0][1]
+        radii = measure_rocks(render_photo(spec.params, rng=rng).pixels, settings.n_angles)[1][0].radii
         fitted.append(ShapeSpec(spec.name, fit_superformula(radii, rng=0).params))
     libraries = {"fitted": Library.from_shapes(fitted), "true": default_library()}
     right = dict.fromkeys(libraries, 0)

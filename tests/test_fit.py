@@ -12,9 +12,9 @@ from hypothesis import strategies as st
 from PIL import Image
 
 from rockscan.core.errors import ParameterError, SpecError
-from rockscan.core.family import MAX_VARIANTS, VARY_NAMES, family, parse_vary, sanitize_name
+from rockscan.core.family import MAX_VARIANTS, VARY_NAMES, family, parse_vary
 from rockscan.core.fit import FitConfig, FitResult, fit_superformula
-from rockscan.core.library import NAME_PATTERN, Library, ShapeSpec
+from rockscan.core.library import NAME_PATTERN, Library, ShapeSpec, sanitize_name
 from rockscan.core.polar import polar_angles, recenter_radii, rotate_radii, symmetry_order
 from rockscan.core.render import random_superformula, render_photo
 from rockscan.core.superformula import SuperformulaParams, shape_radii
@@ -217,7 +217,7 @@ def rendered_fits():
         params = random_superformula(rng)
         photo = render_photo(params, rng=rng)
         _, rocks = measure_rocks(photo.pixels, 360)
-        radii = rocks[0][1]
+        radii = rocks[0].radii
         out.append((params, photo.truth["angle_deg"], radii, fit_superformula(radii, rng=i)))
     return out
 
@@ -246,7 +246,7 @@ def test_library_fitted_from_one_photo_per_class_classifies_fresh_photos(default
     fitted = []
     for spec in default_specs:
         photo = render_photo(spec.params, rng=rng)
-        radii = measure_rocks(photo.pixels, 360)[1][0][1]
+        radii = measure_rocks(photo.pixels, 360)[1][0].radii
         fitted.append(ShapeSpec(spec.name, fit_superformula(radii, rng=0).params))
     library = Library.from_shapes(fitted)
     right = total = 0

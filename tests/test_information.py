@@ -17,7 +17,7 @@ from rockscan.core.information import (
     information_face,
     information_face_cartesian,
     normalize_radii,
-    reference_weights,
+    reference_information,
     sample_term,
     section_edges,
     section_probabilities,
@@ -54,7 +54,7 @@ def test_shannon_bits():
 
 def test_reference_information_of_the_circle():
     config = FaceConfig()
-    w = reference_weights(config)
+    w = reference_information(config)
     assert w.shape == (360, 50)
     np.testing.assert_array_equal(w, np.broadcast_to(w[0], w.shape))  # same on every ray
     edges = section_edges(config)
@@ -71,7 +71,7 @@ def test_face_is_reference_information_times_sample_probability():
     face = information_face(radii, config)
     rho = normalize_radii(radii)
     q = np.diff(norm.cdf(section_edges(config)[None, :], rho[:, None], 0.1), axis=1)
-    np.testing.assert_allclose(face, reference_weights(config) * q, rtol=1e-9, atol=1e-18)
+    np.testing.assert_allclose(face, reference_information(config) * q, rtol=1e-9, atol=1e-18)
     assert rho.mean() == pytest.approx(REFERENCE_RADIUS)
 
 
@@ -88,7 +88,7 @@ def test_scale_never_changes_a_face_and_turning_shifts_it(scale, shift):
 
 def test_variant_two_compares_with_a_reference_shape():
     config = FaceConfig(kind="information-shape", reference=STAR)
-    w = reference_weights(config)
+    w = reference_information(config)
     assert w.shape == (360, 50)
     assert not np.allclose(w, w[:1])  # depends on the ray, unlike the circle
     # A sample equal to the reference gets H(p) * p with the same p.

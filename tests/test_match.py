@@ -15,7 +15,7 @@ from rockscan.core.match import MatchConfig, match_radii, rotation_scores
 from rockscan.core.polar import polar_angles, recenter_radii
 from rockscan.core.superformula import SuperformulaParams, shape_radii
 
-PAPER_EXACT = MatchConfig(metric="eigenspace", angle_metric="eigenspace")
+PAPER_EXACT = MatchConfig.paper()
 
 
 def turned_radii(params: SuperformulaParams, alpha_deg: float, n: int = 360) -> np.ndarray:
@@ -215,3 +215,11 @@ def test_the_residual_cutoff_rejects_samples_far_from_face_space(default_lib, de
         MatchConfig(residual_cutoff=2 * m.residual, distance_cutoff=10.0, mscore_cutoff=-1.0),
     )
     assert kept.interesting
+
+
+def test_the_paper_preset_is_the_papers_exact_method_with_changes_on_top():
+    assert MatchConfig.paper() == MatchConfig(metric="eigenspace", angle_metric="eigenspace")
+    assert MatchConfig.paper(scan=False) == MatchConfig(
+        metric="eigenspace", angle_metric="eigenspace", scan=False
+    )
+    assert MatchConfig.paper() != MatchConfig()

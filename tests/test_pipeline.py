@@ -73,10 +73,10 @@ def test_a_bad_photo_is_an_error_result_never_an_exception(tmp_path, default_lib
 
 def test_a_photo_decoded_at_reduced_size_reports_full_size_pixels(default_lib):
     photo = render_photo(SPECS["lens"], RenderConfig(rows=480, cols=640), rng=2, name="lens")
-    full = measure_rocks(photo.pixels, 360)[1][0][0]
+    full = measure_rocks(photo.pixels, 360)[1][0].outline
     # As a reader decoding at half size: each pixel the mean of a 2 x 2 block.
     reduced = cv2.resize(photo.pixels, (320, 240), interpolation=cv2.INTER_AREA)
-    half = measure_rocks(reduced, 360, scale=2.0)[1][0][0]
+    half = measure_rocks(reduced, 360, scale=2.0)[1][0].outline
     np.testing.assert_allclose(half.centroid_rowcol, full.centroid_rowcol, atol=0.3)
     assert half.area_px == pytest.approx(full.area_px, rel=0.02)
 

@@ -254,13 +254,13 @@ def test_the_benchmarks_one_rotation_path_scores_the_unturned_sample(bench, pape
     # numbers, to the single precision of the scan's eigenface products.
     radii = np.roll(shape_radii(PAPER_NEAR["six-pointed-star"], 360), 17)
     q = sample_term(radii, paper_lib.face_config)
-    one = paper_lib.basis.distances(paper_lib.weights_map * q)
+    one = paper_lib.basis.distances(paper_lib.reference_map * q)
     every = paper_lib.scan_templates.squared_distances(q, ("eigenspace",))["eigenspace"]
     # rtol 1e-5: the scan's complex64 templates (numpy before 2.0 rounds them from double).
     np.testing.assert_allclose(np.sqrt(every[0]), one, rtol=1e-5)
     np.testing.assert_allclose(
         np.sqrt(every[17]),
-        paper_lib.basis.distances(paper_lib.weights_map * np.roll(q, -17, axis=0)),
+        paper_lib.basis.distances(paper_lib.reference_map * np.roll(q, -17, axis=0)),
         rtol=1e-5,
     )
     assert polar_angles(360).size == every.shape[0]

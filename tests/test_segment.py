@@ -66,7 +66,7 @@ def test_a_drawn_disc_is_found_with_its_polarity_centroid_and_area(level):
     seg, rocks = measure_rocks(photo_of([(cover, level)]), 360)
     assert seg.polarity == ("light" if level > 0.45 else "dark")
     assert seg.n_rocks == 1 and seg.channel == "luminance"
-    outline = rocks[0][0]
+    outline = rocks[0].outline
     np.testing.assert_allclose(outline.centroid_rowcol, (90.3, 140.6), atol=0.1)
     assert outline.area_px == pytest.approx(cover.sum(), rel=0.01)
     # The mask at working size holds the disc and nothing else.
@@ -79,8 +79,8 @@ def test_a_large_photo_is_worked_on_a_small_copy_and_mapped_back():
     seg, rocks = measure_rocks(photo_of([(cover, 0.15)], shape=(1200, 1600)), 360)
     assert max(seg.labels.shape) <= SegmentConfig().work_size
     assert seg.scale_rowcol[0] > 1.0 and seg.scale_rowcol[1] > 1.0
-    np.testing.assert_allclose(rocks[0][0].centroid_rowcol, (610.0, 905.0), atol=0.5)
-    assert rocks[0][0].area_px == pytest.approx(np.pi * 220 * 160, rel=0.01)
+    np.testing.assert_allclose(rocks[0].outline.centroid_rowcol, (610.0, 905.0), atol=0.5)
+    assert rocks[0].outline.area_px == pytest.approx(np.pi * 220 * 160, rel=0.01)
 
 
 def test_to_gray_is_bt601_luminance():
@@ -98,8 +98,8 @@ def test_an_alpha_channel_that_cuts_the_rock_out_is_used():
     rgba[..., 3] = np.round(cover * 255).astype(np.uint8)
     seg, rocks = measure_rocks(rgba, 360)
     assert seg.channel == "alpha"
-    np.testing.assert_allclose(rocks[0][0].centroid_rowcol, (60.0, 70.0), atol=0.05)
-    assert rocks[0][0].area_px == pytest.approx(np.pi * 25 * 40, rel=0.01)
+    np.testing.assert_allclose(rocks[0].outline.centroid_rowcol, (60.0, 70.0), atol=0.05)
+    assert rocks[0].outline.area_px == pytest.approx(np.pi * 25 * 40, rel=0.01)
 
 
 # ---------------------------------------------------------------- the main rock
@@ -110,18 +110,18 @@ def test_the_larger_of_two_equally_clear_rocks_is_the_main_one():
     big, small = coverage(shape, (100, 80), (35, 35)), coverage(shape, (90, 220), (20, 20))
     pixels = photo_of([(small, 0.85), (big, 0.85)], shape=shape)
     seg, rocks = measure_rocks(pixels, 360)
-    np.testing.assert_allclose(rocks[0][0].centroid_rowcol, (100, 80), atol=0.2)
+    np.testing.assert_allclose(rocks[0].outline.centroid_rowcol, (100, 80), atol=0.2)
     # With all rocks, both, the larger first.
     seg, rocks = measure_rocks(pixels, 360, all_rocks=True)
     assert seg.n_rocks == 2
-    np.testing.assert_allclose([o.centroid_rowcol for o, _ in rocks], [(100, 80), (90, 220)], atol=0.2)
+    np.testing.assert_allclose([r.outline.centroid_rowcol for r in rocks], [(100, 80), (90, 220)], atol=0.2)
 
 
 def test_of_two_rocks_of_one_size_the_clearer_is_the_main_one():
     shape = (200, 300)
     faint, clear = coverage(shape, (100, 80), (30, 30)), coverage(shape, (100, 220), (30, 30))
     _, rocks = measure_rocks(photo_of([(faint, 0.6), (clear, 0.95)], shape=shape), 360)
-    np.testing.assert_allclose(rocks[0][0].centroid_rowcol, (100, 220), atol=0.2)
+    np.testing.assert_allclose(rocks[0].outline.centroid_rowcol, (100, 220), atol=0.2)
 
 
 def test_a_rock_cut_by_the_frame_yields_to_a_smaller_one_inside():
@@ -129,10 +129,10 @@ def test_a_rock_cut_by_the_frame_yields_to_a_smaller_one_inside():
     cut = coverage(shape, (100, 0), (45, 45))  # half of it outside the frame
     inside = coverage(shape, (100, 200), (26, 26))
     _, rocks = measure_rocks(photo_of([(cut, 0.9), (inside, 0.9)], shape=shape), 360)
-    np.testing.assert_allclose(rocks[0][0].centroid_rowcol, (100, 200), atol=0.2)
+    np.testing.assert_allclose(rocks[0].outline.centroid_rowcol, (100, 200), atol=0.2)
     # Alone, the cut rock is still found, outlined along the frame.
     _, rocks = measure_rocks(photo_of([(cut, 0.9)], shape=shape), 360)
-    assert rocks[0][0].contour_rowcol[:, 1].min() < 0.5
+    assert rocks[0].outline.contour_rowcol[:, 1].min() < 0.5
 
 
 def test_pebbles_are_not_rocks():
@@ -141,7 +141,7 @@ def test_pebbles_are_not_rocks():
     )
     seg, rocks = measure_rocks(photo.pixels, 360, all_rocks=True)
     assert seg.n_rocks == 1
-    found = polygon2mask((300, 400), rocks[0][0].contour_rowcol)
+    found = polygon2mask((300, 400), rocks[0].outline.contour_rowcol)
     truth = polygon2mask((300, 400), truth_polygon(photo.truth))
     assert (found & truth).sum() / (found | truth).sum() >= 0.95
 
@@ -189,12 +189,12 @@ def test_rendered_rocks_are_segmented_with_iou_at_least_095(case, seed):
     seg, rocks = measure_rocks(photo.pixels, 360)
     assert seg.polarity == ("light" if photo.truth["rock_lighter"] else "dark")
     shape = photo.pixels.shape[:2]
-    found = polygon2mask(shape, rocks[0][0].contour_rowcol)
+    found = polygon2mask(shape, rocks[0].outline.contour_rowcol)
     truth = polygon2mask(shape, truth_polygon(photo.truth))
     iou = (found & truth).sum() / (found | truth).sum()
     assert iou >= 0.95, (name, iou)
     cx, cy = photo.truth["centroid_xy"]
-    np.testing.assert_allclose(rocks[0][0].centroid_rowcol, (cy, cx), atol=1.5)
+    np.testing.assert_allclose(rocks[0].outline.centroid_rowcol, (cy, cx), atol=1.5)
 
 
 # ---------------------------------------------------------------- bad input
@@ -262,9 +262,9 @@ def blob_coverage(shape, center):
 @given(shift_row=st.floats(-30.0, 30.0), shift_col=st.floats(-50.0, 50.0))
 def test_moving_the_rock_in_the_photo_moves_its_outline(shift_row, shift_col):
     shape = (200, 260)
-    base = measure_rocks(photo_of([(blob_coverage(shape, (100.0, 130.0)), 0.85)]), 360)[1][0][0]
+    base = measure_rocks(photo_of([(blob_coverage(shape, (100.0, 130.0)), 0.85)]), 360)[1][0].outline
     moved_cover = blob_coverage(shape, (100.0 + shift_row, 130.0 + shift_col))
-    moved = measure_rocks(photo_of([(moved_cover, 0.85)]), 360)[1][0][0]
+    moved = measure_rocks(photo_of([(moved_cover, 0.85)]), 360)[1][0].outline
     np.testing.assert_allclose(
         moved.centroid_rowcol - base.centroid_rowcol, [shift_row, shift_col], atol=0.25
     )
@@ -275,8 +275,8 @@ def test_moving_the_rock_in_the_photo_moves_its_outline(shift_row, shift_col):
 def test_turning_the_photo_turns_the_outline(turns, seed):
     shape = (200, 260)
     pixels = photo_of([(blob_coverage(shape, (96.0, 121.0)), 0.2)], seed=seed)
-    base = measure_rocks(pixels, 360)[1][0][0]
-    turned = measure_rocks(np.rot90(pixels, turns), 360)[1][0][0]
+    base = measure_rocks(pixels, 360)[1][0].outline
+    turned = measure_rocks(np.rot90(pixels, turns), 360)[1][0].outline
     # np.rot90 turns (row, col) counter-clockwise: (r, c) -> (cols - 1 - c, r) per quarter turn.
     r, c = base.centroid_rowcol
     rows, cols = shape

@@ -34,9 +34,9 @@ def test_touching_discs_are_parted_one_rock_each(n):
     pixels = photo_of([(c, 0.85) for c in chain(shape, centers, 20)], shape=shape)
     seg, rocks = measure_rocks(pixels, 360, all_rocks=True)
     assert seg.n_rocks == n
-    found = sorted(o.centroid_rowcol[1] for o, _ in rocks)
+    found = sorted(r.outline.centroid_rowcol[1] for r in rocks)
     np.testing.assert_allclose(found, [c[1] for c in centers], atol=1.5)
-    for outline, _ in rocks:
+    for outline in (r.outline for r in rocks):
         # Each is about one disc: the cut takes a sliver of the overlap at most.
         assert outline.area_px == pytest.approx(np.pi * 20**2, rel=0.12)
 

@@ -68,9 +68,8 @@ def library_fit(
     usage errors.
     """
     from rockscan.core.errors import RockscanError
-    from rockscan.core.family import sanitize_name
     from rockscan.core.fit import fit_superformula
-    from rockscan.core.library import ShapeSpec
+    from rockscan.core.library import ShapeSpec, sanitize_name, unique_name
     from rockscan.draw.fits import plot_fits
     from rockscan.io import read_spec, write_spec
 
@@ -83,7 +82,7 @@ def library_fit(
     report = sys.stdout if output is not None or as_json else sys.stderr
     shapes, drawn, failed = [], [], 0
     for path in inputs:
-        name = _unique(sanitize_name(Path(path).stem), taken)
+        name = unique_name(sanitize_name(Path(path).stem), taken)
         try:
             radii = _outline_radii(path)
             fit = fit_superformula(radii, rng=seed)
@@ -138,16 +137,7 @@ def _outline_radii(path: str) -> Any:
     config = SegmentConfig()
     image = read_image(path, max_side=2 * config.work_size)
     _, rocks = measure_rocks(image.pixels, _N_ANGLES, config, scale=image.scale)
-    return rocks[0][1]
-
-
-def _unique(name: str, taken: set[str]) -> str:
-    if name not in taken:
-        return name
-    k = 2
-    while f"{name}-{k}" in taken:
-        k += 1
-    return f"{name}-{k}"
+    return rocks[0].radii
 
 
 def _check_folder(path: str | None, hint: str) -> None:

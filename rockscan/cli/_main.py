@@ -183,10 +183,10 @@ def _match_options(func: Callable[..., Any]) -> Callable[..., Any]:
     ) -> Any:
         from rockscan.core.match import MatchConfig
 
-        paper = method == "paper"
+        preset = MatchConfig.paper() if method == "paper" else MatchConfig()
         kwargs["match_config"] = MatchConfig(
-            metric=metric or ("eigenspace" if paper else "auto"),
-            angle_metric=angle_metric or ("eigenspace" if paper else "face"),
+            metric=metric or preset.metric,
+            angle_metric=angle_metric or preset.angle_metric,
             distance_cutoff=distance_cutoff,
             mscore_cutoff=mscore_cutoff,
             residual_cutoff=residual_cutoff,

@@ -5,14 +5,13 @@ and the ``--vary`` settings that describe them.
 from __future__ import annotations
 
 import math
-import re
 from collections.abc import Sequence
 
 import numpy as np
 
 from rockscan.core._threads import one_blas_thread
 from rockscan.core.errors import ParameterError, SpecError
-from rockscan.core.library import ShapeSpec
+from rockscan.core.library import ShapeSpec, sanitize_name
 from rockscan.core.superformula import SuperformulaParams, round_significant, shape_radii
 
 __all__ = ["MAX_VARIANTS", "VARY_NAMES", "family", "parse_vary", "sanitize_name"]
@@ -38,30 +37,6 @@ MAX_VARIANTS = 1000
 
 
 _VARY_SYNTAX = "NAME=START:STOP:COUNT or NAME=V1,V2,..., e.g. n1=0.8:1.2:5"
-
-
-def sanitize_name(text: str, *, fallback: str = "shape") -> str:
-    """A shape name from free text: lower case, every run of other characters to one '-'.
-
-    Parameters
-    ----------
-    text : str
-        E.g. a photo's file name stem.
-    fallback : str
-        The name when nothing is left.
-
-    Returns
-    -------
-    name : str
-        Matches ``[a-z0-9-]+``.
-
-    Examples
-    --------
-    >>> sanitize_name("Rock_07 (left).JPG")
-    'rock-07-left-jpg'
-    """
-    name = re.sub(r"[^a-z0-9]+", "-", str(text).lower()).strip("-")
-    return name or fallback
 
 
 def parse_vary(text: str) -> tuple[str, tuple[float, ...]]:

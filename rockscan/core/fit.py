@@ -44,7 +44,13 @@ from numpy.typing import ArrayLike, NDArray
 
 from rockscan.core._threads import one_blas_thread
 from rockscan.core.errors import ParameterError
-from rockscan.core.polar import polar_angles, recenter_radii, resample_radii, symmetry_order
+from rockscan.core.polar import (
+    polar_angles,
+    polygon_area_centroids,
+    recenter_radii,
+    resample_radii,
+    symmetry_order,
+)
 from rockscan.core.superformula import (
     SuperformulaParams,
     degenerate_rays,
@@ -435,11 +441,7 @@ def _recenter_rows(
     (nearly always); :func:`rockscan.core.polar.recenter_radii` elsewhere.
     """
     x, y = radii * np.cos(theta), radii * np.sin(theta)
-    x1, y1 = np.roll(x, -1, axis=1), np.roll(y, -1, axis=1)
-    cross = x * y1 - x1 * y
-    six_area = 3.0 * cross.sum(axis=1)
-    cx = ((x + x1) * cross).sum(axis=1) / six_area
-    cy = ((y + y1) * cross).sum(axis=1) / six_area
+    _, cx, cy = polygon_area_centroids(x, y)
     centered = radii.copy()
     moved = np.flatnonzero(np.hypot(cx, cy) > 1e-9 * radii.mean(axis=1))
     dx, dy = x[moved] - cx[moved, None], y[moved] - cy[moved, None]

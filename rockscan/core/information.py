@@ -42,7 +42,7 @@ __all__ = [
     "information_face",
     "information_face_cartesian",
     "normalize_radii",
-    "reference_weights",
+    "reference_information",
     "sample_term",
     "section_edges",
     "section_probabilities",
@@ -242,7 +242,7 @@ def shannon_bits(p: ArrayLike) -> NDArray[np.float64]:
     return out
 
 
-def reference_weights(config: FaceConfig) -> NDArray[np.float64]:
+def reference_information(config: FaceConfig) -> NDArray[np.float64]:
     """The fixed factor of every face: the reference information ``H_ref``.
 
     Returns
@@ -310,7 +310,7 @@ def information_face(radii: ArrayLike, config: FaceConfig | None = None) -> NDAr
     config = FaceConfig() if config is None else config
     if config.grid == "cartesian":
         return information_face_cartesian(radii, config)
-    return reference_weights(config) * sample_term(radii, config)
+    return reference_information(config) * sample_term(radii, config)
 
 
 def information_face_cartesian(radii: ArrayLike, config: FaceConfig) -> NDArray[np.float64]:
@@ -334,7 +334,7 @@ def information_face_cartesian(radii: ArrayLike, config: FaceConfig) -> NDArray[
     frac = position - np.floor(position)
     sample = radii[..., lo] * (1.0 - frac) + radii[..., (lo + 1) % config.n_angles] * frac
     q = ndtr((edges[section + 1] - sample) / config.sigma) - ndtr((edges[section] - sample) / config.sigma)
-    return reference_weights(config) * q
+    return reference_information(config) * q
 
 
 def _cartesian_polar(config: FaceConfig) -> tuple[NDArray[np.float64], NDArray[np.float64]]:

@@ -21,7 +21,7 @@ pruned by a lower bound (rockscan/core/prefilter.py).
 from __future__ import annotations
 
 import re
-from collections.abc import Sequence
+from collections.abc import Collection, Sequence
 from dataclasses import dataclass, field
 from functools import cached_property
 from typing import TYPE_CHECKING
@@ -37,11 +37,11 @@ from rockscan.core.information import (
     FaceConfig,
     information_face,
     normalize_radii,
-    reference_weights,
+    reference_information,
     section_edges,
     section_probabilities,
 )
-from rockscan.core.polar import polar_angles, symmetry_order
+from rockscan.core.polar import polar_angles, polygon_area_centroids, symmetry_order
 from rockscan.core.superformula import SuperformulaParams, degenerate_rays, log_superformula, shape_radii
 
 if TYPE_CHECKING:
@@ -54,9 +54,11 @@ __all__ = [
     "Library",
     "ShapeSpec",
     "closed_shapes_radii",
+    "sanitize_name",
     "shape_radii",
     "shapes_radii",
     "symmetry_orders",
+    "unique_name",
 ]
 
 #: Allowed shape names.
@@ -67,6 +69,46 @@ EXACT_LIMIT = 1000
 _CHUNK = 256
 #: Step of the radius table of section probabilities (map units); see _FaceTable.
 _TABLE_STEP = 5e-4
+
+
+def sanitize_name(text: str, *, fallback: str = "shape") -> str:
+    """A shape name from free text: lower case, every run of other characters to one '-'.
+
+    Parameters
+    ----------
+    text : str
+        E.g. a photo's file name stem.
+    fallback : str
+        The name when nothing is left.
+
+    Returns
+    -------
+    name : str
+        Matches ``[a-z0-9-]+``.
+
+    Examples
+    --------
+    >>> sanitize_name("Rock_07 (left).JPG")
+    'rock-07-left-jpg'
+    """
+    name = re.sub(r"[^a-z0-9]+", "-", str(text).lower()).strip("-")
+    return name or fallback
+
+
+def unique_name(name: str, taken: Collection[str]) -> str:
+    """``name``, or ``name-2``, ``name-3``, ... : the first not in ``taken``.
+
+    Examples
+    --------
+    >>> unique_name("egg", {"egg", "egg-2"})
+    'egg-3'
+    """
+    if name not in taken:
+        return name
+    k = 2
+    while f"{name}-{k}" in taken:
+        k += 1
+    return f"{name}-{k}"
 
 
 @dataclass(frozen=True)
@@ -339,9 +381,9 @@ class Library:
         return calibration.cutoffs
 
     @cached_property
-    def weights_map(self) -> NDArray[np.float64]:
+    def reference_map(self) -> NDArray[np.float64]:
         """The reference information ``H_ref`` of every face (see information.py)."""
-        return reference_weights(self.face_config)
+        return reference_information(self.face_config)
 
     @cached_property
     def scan_templates(self) -> ScanTemplates:
@@ -370,7 +412,7 @@ class Library:
         """The same library without a prefilter: every match scans every shape (the
         exhaustive answer a pruned scan is measured against)."""
         copy = Library._unchecked(**{name: getattr(self, name) for name in self.__dataclass_fields__})
-        for cached in ("weights_map", "scan_templates"):
+        for cached in ("reference_map", "scan_templates"):
             if cached in self.__dict__:
                 object.__setattr__(copy, cached, self.__dict__[cached])
         copy.set_prefilter(None)
@@ -458,13 +500,7 @@ def _recentered(radii: NDArray[np.float64]) -> NDArray[np.float64]:
     n_shapes, n_angles = radii.shape
     theta = polar_angles(n_angles)
     x, y = radii * np.cos(theta), radii * np.sin(theta)
-    x1, y1 = np.roll(x, -1, axis=1), np.roll(y, -1, axis=1)
-    cross = x * y1 - x1 * y
-    signed = cross.sum(axis=1) / 2.0
-    flat = np.abs(signed) < 1e-12
-    with np.errstate(divide="ignore", invalid="ignore"):
-        cx = np.where(flat, x.mean(axis=1), ((x + x1) * cross).sum(axis=1) / (6.0 * signed))
-        cy = np.where(flat, y.mean(axis=1), ((y + y1) * cross).sum(axis=1) / (6.0 * signed))
+    _, cx, cy = polygon_area_centroids(x, y)
     # recenter_radii's dense outline puts its points on the polygon's own edges, so
     # the rays cross the same lines: the polygon alone gives the same radii
     # (to rounding, 1e-15) at an eighth of the work.
@@ -549,7 +585,7 @@ class _FaceTable:
         v0, v1, s0, s1 = values[:-1], values[1:], slopes[:-1], slopes[1:]
         # Each cell's Hermite cubic as a polynomial in t, lowest power first.
         self.coefficients = np.stack([v0, s0, 3 * (v1 - v0) - 2 * s0 - s1, 2 * (v0 - v1) + s0 + s1], axis=1)
-        self.weights = reference_weights(config)
+        self.weights = reference_information(config)
 
     def faces(self, radii: NDArray[np.float64]) -> NDArray[np.float64]:
         """(n, n_angles) radii -> (n, n_angles, n_sections) faces."""

@@ -5,7 +5,7 @@ eigenspace distance ``eps_k`` (outWeight) at every rotation of the sample, keeps
 each shape's best rotation ``w_k = min_alpha eps_k(alpha)``, and reports
 
 * the nearest shape and its refined angle,
-* ``MScore = 1 - min(w) / mean(w)`` (paper-notes.md, note 9),
+* ``MScore = 1 - min(w) / mean(w)`` (docs/paper.md),
 * whether the sample belongs to the library (``interesting``).
 
 The decision, for a library of any size (docs/decision.md): the sample is
@@ -21,7 +21,7 @@ construction and with two it only compares two distances.
 
 The default (``metric="auto"``) ranks a noisy sample by the sensor distance too,
 and a clean one by the paper's eigenspace distance; the paper's exact method is
-``MatchConfig(metric="eigenspace", angle_metric="eigenspace")``.
+``MatchConfig.paper()``.
 
 Turning a sample shifts its face's sample term ``q`` along theta, so the scan
 correlates ``q`` with Fourier templates of the eigenfaces: all ``n_angles``
@@ -110,8 +110,8 @@ class MatchConfig:
     angle_metric : {"face", "eigenspace"}
         What the nearest shape's angle minimises. A turned sample leaves face
         space, where ``eps`` alone can find spurious alignments; the whole-face
-        distance ``"face"`` measures the angle best (README, "Benchmarks").
-        The paper's exact method is ``metric="eigenspace", angle_metric="eigenspace"``.
+        distance ``"face"`` measures the angle best (docs/accuracy.md).
+        The paper's exact method is :meth:`MatchConfig.paper`.
     """
 
     distance_cutoff: float | None = None
@@ -130,6 +130,18 @@ class MatchConfig:
             value = getattr(self, name)
             if value is not None and (not isinstance(value, (int, float)) or math.isnan(value)):
                 raise ParameterError(f"{name} must be a number or None, got {value!r}")
+
+    @classmethod
+    def paper(cls, **changes: object) -> MatchConfig:
+        """The paper's exact method: the eigenspace distance ``eps_k`` ranks the shapes
+        and finds the angle (``metric="eigenspace", angle_metric="eigenspace"``).
+
+        Parameters
+        ----------
+        **changes
+            Other settings, e.g. ``scan=False`` for the paper's Fig. 13.
+        """
+        return cls(**{"metric": "eigenspace", "angle_metric": "eigenspace", **changes})
 
     def resolved_metric(self, library: Library) -> str:
         """The metric in force for a library before a sample is seen (``"auto"``: ``"sensor"``;
@@ -253,7 +265,7 @@ class ScanTemplates:
             raise ParameterError("Fourier scan templates need the polar grid")
         basis = library.basis
         shape = config.face_shape
-        w_map = library.weights_map
+        w_map = library.reference_map
         # One stack of channels against the sample term, one per eigenface; the
         # mean face and the squared weights feed the whole-face norm, where large
         # terms cancel, so they keep double precision.
@@ -593,7 +605,7 @@ def _face_at(
     """The sample's face turned back by ``shift`` rays (``q``: its polar sample term)."""
     if q is None:
         return information_face(np.roll(radii, -shift), library.face_config)
-    return library.weights_map * np.roll(q, -shift, axis=0)
+    return library.reference_map * np.roll(q, -shift, axis=0)
 
 
 def _parabola_offset(values: NDArray[np.float64], index: int) -> float:

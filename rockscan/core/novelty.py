@@ -38,7 +38,6 @@ Choices (documented in docs/triage.md, "Novelty"):
 from __future__ import annotations
 
 import math
-import re
 from dataclasses import dataclass, field, replace
 
 import numpy as np
@@ -48,7 +47,7 @@ from rockscan.core.choices import NOVELTY_METRICS
 from rockscan.core.eigen import EigenBasis
 from rockscan.core.errors import LibraryError, ParameterError
 from rockscan.core.information import information_face, sample_term
-from rockscan.core.library import EXACT_LIMIT, Library
+from rockscan.core.library import EXACT_LIMIT, Library, sanitize_name, unique_name
 from rockscan.core.match import MatchConfig, _template_spectra, match_radii, rotation_scores
 from rockscan.core.polar import symmetry_order
 from rockscan.core.prefilter import EXACT_SCAN_LIMIT, Prefilter, features_of
@@ -64,7 +63,6 @@ __all__ = [
 
 #: Prefix of the names of shapes added to an observed library.
 OBSERVED_PREFIX = "seen-"
-_NAME_CHARS = re.compile(r"[^a-z0-9]+")
 
 
 @dataclass(frozen=True)
@@ -162,12 +160,7 @@ def observed_name(stem: str, taken: tuple[str, ...] | set[str]) -> str:
     taken : collection of str
         Names already in use.
     """
-    base = OBSERVED_PREFIX + (_NAME_CHARS.sub("-", stem.lower()).strip("-")[:60] or "rock")
-    name, count = base, 1
-    while name in taken:
-        count += 1
-        name = f"{base}-{count}"
-    return name
+    return unique_name(OBSERVED_PREFIX + sanitize_name(stem, fallback="rock")[:60], taken)
 
 
 @dataclass(frozen=True, eq=False)
@@ -374,7 +367,7 @@ class _Growth:
             raise LibraryError(f"shape names must be unique; repeated: {name}")
         config, mean = lib.face_config, lib.basis.mean
         if config.grid == "polar":  # the reference information is at hand: only q is new
-            face = (lib.weights_map * sample_term(radii, config)).ravel()
+            face = (lib.reference_map * sample_term(radii, config)).ravel()
         else:
             face = information_face(radii, config).ravel()
         n, c = self.n, self.n_components
@@ -391,7 +384,7 @@ class _Growth:
             direction = residual / np.linalg.norm(residual)
             self.components[c] = direction
             self.eigenvalues[c] = rho**2
-            channel = (direction.reshape(config.face_shape) * lib.weights_map)[None]
+            channel = (direction.reshape(config.face_shape) * lib.reference_map)[None]
             self.spectra[:, :, c] = _template_spectra(channel, self.spectra.dtype)[:, :, 0]
             self.eigen_offsets[c] = direction @ mean
             omega = np.append(omega, direction @ centered)
@@ -431,7 +424,7 @@ class _Growth:
             shape_weights=self.weights[:n, :c],
             omega_norm_sq=self.omega_norm_sq[:n],
         )
-        object.__setattr__(grown, "weights_map", lib.weights_map)
+        object.__setattr__(grown, "reference_map", lib.reference_map)
         object.__setattr__(grown, "scan_templates", self.templates)
         if self.prefilter is None:
             if n > EXACT_SCAN_LIMIT:  # grown past the size scanned whole: built once

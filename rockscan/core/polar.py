@@ -166,14 +166,38 @@ def polygon_area_centroid(points: ArrayLike) -> tuple[float, NDArray[np.float64]
         In the coordinates given; the vertex mean when the polygon has no area.
     """
     pts = np.asarray(points, dtype=np.float64)
-    u, v = pts[:, 0], pts[:, 1]
-    u1, v1 = np.roll(u, -1), np.roll(v, -1)
-    cross = u * v1 - u1 * v
-    signed = cross.sum() / 2.0
+    signed, cu, cv = polygon_area_centroids(pts[:, 0], pts[:, 1])
     if abs(signed) < 1e-12:
         return 0.0, pts.mean(axis=0)
-    centroid = np.array([((u + u1) * cross).sum(), ((v + v1) * cross).sum()]) / (6.0 * signed)
-    return abs(float(signed)), centroid
+    return abs(float(signed)), np.array([cu, cv])
+
+
+def polygon_area_centroids(
+    u: ArrayLike, v: ArrayLike
+) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
+    """Signed area and area centroid of closed polygons, one per row (shoelace formula).
+
+    Parameters
+    ----------
+    u, v : (..., n) array_like of float
+        The vertices' two coordinates in order along the last axis; the last
+        vertex joins the first.
+
+    Returns
+    -------
+    signed_area, cu, cv : (...) ndarray of float
+        Positive for counter-clockwise vertices in (x, y); the centroid is the
+        vertex mean where the polygon has no area (``|signed_area| < 1e-12``).
+    """
+    u, v = np.asarray(u, dtype=np.float64), np.asarray(v, dtype=np.float64)
+    u1, v1 = np.roll(u, -1, axis=-1), np.roll(v, -1, axis=-1)
+    cross = u * v1 - u1 * v
+    signed = cross.sum(axis=-1) / 2.0
+    flat = np.abs(signed) < 1e-12
+    with np.errstate(divide="ignore", invalid="ignore"):
+        cu = np.where(flat, u.mean(axis=-1), ((u + u1) * cross).sum(axis=-1) / (6.0 * signed))
+        cv = np.where(flat, v.mean(axis=-1), ((v + v1) * cross).sum(axis=-1) / (6.0 * signed))
+    return signed, cu, cv
 
 
 def polygon_centroid_xy(xy: ArrayLike) -> NDArray[np.float64]:

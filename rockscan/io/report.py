@@ -541,9 +541,8 @@ class ReportJournal:
     Attributes
     ----------
     done : set of str
-        :func:`photo_key` of every photo already in the report.
-    n_resumed : int
-        Photos kept from earlier runs.
+        :func:`photo_key` of every photo already in the report (kept from earlier
+        runs when resuming).
 
     Raises
     ------
@@ -595,7 +594,6 @@ class ReportJournal:
             self._fh = open(self.path, "ab", buffering=0)
         except OSError as exc:
             raise WriteError(f"{self.path}: cannot write report ({exc.strerror or exc})") from None
-        self.n_resumed = len(self.done)
 
     def _scan(self) -> int:
         """Check an earlier run's header and rows; the end of its last complete row."""

@@ -32,6 +32,7 @@ _log = logging.getLogger(__name__)
 
 __all__ = [
     "ClassifyConfig",
+    "MeasuredRock",
     "PhotoResult",
     "RockResult",
     "align_radii",
@@ -40,6 +41,23 @@ __all__ = [
     "library_from_spec",
     "measure_rocks",
 ]
+
+
+@dataclass(frozen=True, eq=False)
+class MeasuredRock:
+    """One rock of a photo, measured: its outline and its radii.
+
+    Attributes
+    ----------
+    outline : Outline
+        Contour and centroid in photo pixels (full resolution).
+    radii : (n_angles,) ndarray of float
+        Distances from the centroid to the contour at the matcher's angles
+        (:func:`rockscan.core.polar.polar_angles`), pixels.
+    """
+
+    outline: Outline
+    radii: NDArray[np.float64]
 
 
 @dataclass(frozen=True)
@@ -169,7 +187,7 @@ def measure_rocks(
     *,
     all_rocks: bool = False,
     scale: float = 1.0,
-) -> tuple[Segmentation, list[tuple[Outline, NDArray[np.float64]]]]:
+) -> tuple[Segmentation, list[MeasuredRock]]:
     """Segment a photo and measure each rock's outline and radii.
 
     Parameters
@@ -188,7 +206,8 @@ def measure_rocks(
     Returns
     -------
     segmentation : Segmentation
-    rocks : list of (Outline, radii)
+    rocks : list of MeasuredRock
+        One per rock of ``segmentation.rocks``, in the same order.
     """
     seg = segment(pixels, config, all_rocks=all_rocks)
     # One map covers both reductions: a working pixel spans seg.scale_rowcol * scale
@@ -198,7 +217,7 @@ def measure_rocks(
     for rock in seg.rocks:
         outline = trace_outline(rock.coverage, scale=pixel_scale, origin_rowcol=rock.origin_rowcol)
         radii = contour_radii(outline.contour_rowcol, outline.centroid_rowcol, n_angles)
-        rocks.append((outline, radii))
+        rocks.append(MeasuredRock(outline, radii))
     return seg, rocks
 
 
@@ -239,7 +258,8 @@ def classify_image(
         pixels, library.face_config.n_angles, config.segment, all_rocks=all_rocks, scale=scale
     )
     results = []
-    for i, ((outline, radii), rock) in enumerate(zip(rocks, seg.rocks, strict=True)):
+    for i, (measured, rock) in enumerate(zip(rocks, seg.rocks, strict=True)):
+        outline, radii = measured.outline, measured.radii
         match = match_radii(radii, library, config.match)
         if rock.score < CONFIDENT_SCORE and match.interesting:
             # A shape read from an outline the photo does not support is no finding.
@@ -372,7 +392,7 @@ def library_from_spec(
                     _, rocks = measure_rocks(image.pixels, n, segment_config, scale=image.scale)
                 except RockscanError as exc:
                     raise SpecError(f"shape {shape.name!r}: example {image_path}: {exc}") from None
-                r = rocks[0][1]
+                r = rocks[0].radii
                 measured.append(r / r.mean())
             examples = align_radii(np.array(measured))
         names.append(shape.name)

@@ -51,7 +51,7 @@ PAPER_TABLES: dict[str, dict[str, tuple[float, float, float, float]]] = {
     },
 }
 #: The paper's exact method: the eigenspace distance ranks the shapes and picks the angle.
-PAPER = MatchConfig(metric="eigenspace", angle_metric="eigenspace")
+PAPER = MatchConfig.paper()
 #: The two matchers every experiment runs.
 METHODS: dict[str, MatchConfig] = {"default": MatchConfig(), "paper": PAPER}
 
