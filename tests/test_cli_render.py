@@ -187,3 +187,39 @@ def test_off_a_terminal_a_long_render_logs_its_progress(tmp_path):
     assert progress[-1] == "rockscan: rendered 20/20 photos"
     quiet = render("-o", str(tmp_path / "b"), "-n", "20", "--size", "32x32", "--shape", "circle", "-q")
     assert quiet.exit_code == 0 and quiet.stderr == "" and quiet.stdout == ""
+
+
+def test_option_defaults_are_the_settings_dataclasses_defaults():
+    from rockscan.core.information import FaceConfig
+
+    runner = CliRunner()
+    render_help = " ".join(runner.invoke(main, ["render", "--help"]).output.split())
+    build_help = " ".join(runner.invoke(main, ["library", "build", "--help"]).output.split())
+    config, face = RenderConfig(), FaceConfig()
+    for option, value in [
+        ("--size", f"{config.rows}x{config.cols}"),
+        ("--contrast", config.contrast),
+        ("--blur", config.blur),
+        ("--bits", config.bit_depth),
+    ]:
+        assert re.search(
+            rf"{option} \S+ (?:(?! --[a-z]).)*?\[default: {re.escape(str(value))}\]", render_help
+        ), option
+    for option, value in [("--sigma", face.sigma), ("--n-angles", face.n_angles), ("--grid", face.grid)]:
+        assert re.search(
+            rf"{option} \S+ (?:(?! --[a-z]).)*?\[default: {re.escape(str(value))}\]", build_help
+        ), option
+
+
+def test_a_render_without_options_uses_the_render_settings_defaults(tmp_path):
+    runner = CliRunner()
+    result = runner.invoke(main, ["render", "-o", str(tmp_path), "-n", "1"])
+    assert result.exit_code == 0, result.output
+    (truth_path,) = tmp_path.glob("*.json")
+    settings = json.loads(truth_path.read_text())["render"]
+    config = RenderConfig()
+    assert (settings["rows"], settings["cols"], settings["contrast"]) == (
+        config.rows,
+        config.cols,
+        config.contrast,
+    )
