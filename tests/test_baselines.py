@@ -104,7 +104,7 @@ def test_efd_orientation_is_undefined_for_many_fold_symmetric_shapes(default_lib
 @pytest.mark.parametrize("name", ["elongated", "circle", "teardrop"])
 def test_rendered_rocks_with_a_clear_first_harmonic_are_matched(default_lib, hu, efd, name):
     photo = render_photo(SPECS[name], RenderConfig(rows=300, cols=400), rng=3, name=name)
-    contour = measure_rocks(photo.pixels, 360)[1][0][0].contour_rowcol
+    contour = measure_rocks(photo.pixels, 360)[1][0].outline.contour_rowcol
     assert hu.match(contour).nearest == name
     assert efd.match(contour).nearest == name
 

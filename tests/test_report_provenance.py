@@ -72,7 +72,7 @@ def test_the_library_hash_is_its_content_in_every_process(tmp_path, default_lib)
     save_library(default_lib, path)
     assert library_hash(load_library(path)) == library_hash(default_lib)
     code = (
-        "from rockscan.io import default_library; from rockscan.run.triage import library_hash; "
+        "from rockscan.io import default_library; from rockscan.run.provenance import library_hash; "
         "print(library_hash(default_library()))"
     )
     for threads in ("1", "2"):

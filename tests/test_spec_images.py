@@ -78,7 +78,7 @@ def test_face_of_an_example_shape_is_the_mean_of_its_aligned_examples_faces(exam
     measured = []
     for path in shapes[2].images:
         with Image.open(path) as image:
-            radii = measure_rocks(np.asarray(image), 180)[1][0][1]
+            radii = measure_rocks(np.asarray(image), 180)[1][0].radii
         measured.append(radii / radii.mean())
     aligned = np.array([best_turn(r, measured[0]) for r in measured])
     face = information_face(aligned, config).mean(axis=0)
@@ -98,7 +98,7 @@ def test_examples_turned_differently_reinforce_rather_than_blur(example_spec):
     unaligned = []
     for path in shapes[2].images:
         with Image.open(path) as image:
-            radii = measure_rocks(np.asarray(image), 360)[1][0][1]
+            radii = measure_rocks(np.asarray(image), 360)[1][0].radii
         unaligned.append(radii / radii.mean())
     blurred = np.mean(unaligned, axis=0)
     assert rms_percent(best_turn(blurred, true), true) > 3.0
