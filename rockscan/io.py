@@ -63,6 +63,8 @@ IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".tif", ".tiff", ".bmp")
 _ARRAYS = ("radii", "interest", "symmetry", "mean", "components", "eigenvalues", "weights")
 #: Per-shape calibration arrays (absent from files written before cutoffs were stored).
 _CUTOFF_ARRAYS = ("cutoffs", "cutoff_spacing", "cutoff_crowded", "cutoff_calibrated")
+#: Stored since calibration version 2 (the cutoff of a sample without noise of its own).
+_CLEAN_CUTOFFS = "cutoff_clean"
 _SHAPE_KEYS = {"name", "interest", "images", *SuperformulaParams.names()}
 
 
@@ -228,6 +230,7 @@ def save_library(library: Library, path: str | os.PathLike[str]) -> None:
         cutoff_arrays = dict(
             zip(_CUTOFF_ARRAYS, (cal.cutoffs, cal.spacing, cal.crowded, cal.calibrated), strict=True)
         )
+        cutoff_arrays[_CLEAN_CUTOFFS] = cal.clean_cutoffs
     arrays = {
         "metadata": np.frombuffer(json.dumps(metadata).encode("utf-8"), dtype=np.uint8),
         "radii": library.radii,
@@ -294,7 +297,8 @@ def load_library(path: str | os.PathLike[str]) -> Library:
                     raise LibraryError(f"{path}: not a rockscan library (missing {', '.join(missing)})")
                 raw = archive["metadata"]
                 arrays = {k: archive[k] for k in _ARRAYS}
-                arrays.update({k: archive[k] for k in _CUTOFF_ARRAYS if k in archive.files})
+                stored = (*_CUTOFF_ARRAYS, _CLEAN_CUTOFFS)
+                arrays.update({k: archive[k] for k in stored if k in archive.files})
     except LibraryError:
         raise
     except (zipfile.BadZipFile, zlib.error, EOFError) as exc:
@@ -336,9 +340,10 @@ def load_library(path: str | os.PathLike[str]) -> Library:
         raise LibraryError(f"{path}: library cutoffs are inconsistent ({_first_line(exc)})") from None
     except (KeyError, TypeError, ValueError, OverflowError) as exc:
         raise LibraryError(f"{path}: library file is inconsistent ({_first_line(exc)})") from None
-    if library.calibration is None and version < _CALIBRATED_VERSION:
-        from rockscan.calibrate import calibrate
+    from rockscan.calibrate import CALIBRATION_VERSION, calibrate
 
+    stored = library.calibration
+    if stored is None and version < _CALIBRATED_VERSION:
         # A file from before cutoffs were stored: its shapes are all that is
         # needed to calibrate them as `library build` now does.
         warnings.warn(
@@ -348,6 +353,19 @@ def load_library(path: str | os.PathLike[str]) -> Library:
             stacklevel=2,
         )
         calibration = calibrate(library.radii)
+        library = dataclasses.replace(
+            library, calibration=dataclasses.replace(calibration, note="calibrated when loaded")
+        )
+    elif stored is not None and stored.version < CALIBRATION_VERSION:
+        # Cutoffs of an earlier calibration mean another test: recalibrated at the stored tolerance.
+        warnings.warn(
+            f"{path}: its cutoffs come from an earlier calibration (version {stored.version}); calibrated "
+            f"them now at its tolerance {stored.tolerance:g} (rebuild it with `rockscan library build` "
+            "to store them)",
+            RecalibratedWarning,
+            stacklevel=2,
+        )
+        calibration = calibrate(library.radii, tolerance=stored.tolerance, seed=stored.seed)
         library = dataclasses.replace(
             library, calibration=dataclasses.replace(calibration, note="calibrated when loaded")
         )
@@ -374,6 +392,7 @@ def _read_calibration(meta: dict[str, object], arrays: dict[str, NDArray], path:
         spacing=arrays["cutoff_spacing"],
         crowded=arrays["cutoff_crowded"],
         calibrated=arrays["cutoff_calibrated"],
+        clean_cutoffs=arrays[_CLEAN_CUTOFFS] if _CLEAN_CUTOFFS in arrays else None,
         tolerance=float(info["tolerance"]),
         seed=int(info.get("seed", 0)),
         version=int(info.get("version", 1)),
