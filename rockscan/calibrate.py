@@ -91,6 +91,9 @@ COARSE_HARMONICS = 8
 _MIN_FACTOR = 0.05
 #: Smallest radius, relative to the mean, that the log of a measurement takes.
 _LOG_FLOOR = 0.05
+#: Share of in-library samples a crowded shape's cutoff keeps at least, whatever
+#: shapes at the library's spacing it then lets in.
+KEEP_CROWDED = 0.9
 #: Harmonics in the noise band, and the simulated samples that measure its gain.
 _BAND = 24
 _GAIN_SAMPLES = 64
@@ -701,7 +704,8 @@ def _cutoff(
     accept = max(accept, min(floor, reject))
     if accept <= reject:
         return (math.sqrt(accept * reject) if accept > 0 else reject / 2.0), False
-    return _balanced(inside, outside, (1.0 - accept_quantile) / reject_quantile), True
+    # The tolerance is a promise: a crowded shape still keeps KEEP_CROWDED of its samples.
+    return max(_balanced(inside, outside), float(np.quantile(inside, KEEP_CROWDED))), True
 
 
 def _calibrate_iv(
@@ -833,10 +837,11 @@ def _outside(
         away /= np.maximum(np.sqrt(np.sum(away**2, axis=1, keepdims=True)), 1e-12)
         fields[:, n_random:] = away[:, None, :] + 0.3 * fields[:, n_random:]
     # Out-of-library shapes lie at least the library's typical spacing from every
-    # shape: a shape closer to its neighbour than that is measured at that spacing.
+    # shape, and no farther from k than that on some side of it, however far
+    # k's own neighbour is: every shape is measured at that spacing.
     finite = spacing_all[np.isfinite(spacing_all)]
     typical = float(np.median(finite)) if finite.size else np.inf
-    size = np.maximum(spacing, typical)
+    size = np.full(spacing.shape, typical)
     alone = ~np.isfinite(size)
     # A shape alone: twice what the tolerance's noise reaches in the weighted harmonics.
     size[alone] = 2.0 * math.sqrt(log_noise_variance(model.tolerance) * float(_full_sum(metric.weights, n)))
