@@ -72,6 +72,7 @@ __all__ = [
     "CALIBRATION_VERSION",
     "COARSE_HARMONICS",
     "DEFAULT_TOLERANCE",
+    "KEEP_CROWDED",
     "Calibration",
     "CalibrationSamples",
     "SensorMetric",
