@@ -218,9 +218,7 @@ def methods(cutoffs: dict[str, dict[str, float]] | None = None) -> dict[str, Met
     matched = "matched filter (radii, face)"
     return {
         "rockscan default": rockscan_method(info, MatchConfig()),
-        "paper exact (eigenspace/eigenspace)": rockscan_method(
-            info, MatchConfig.paper()
-        ),
+        "paper exact (eigenspace/eigenspace)": rockscan_method(info, MatchConfig.paper()),
         face: rockscan_method(info, MatchConfig(metric="face", angle_metric="face", **own(face))),
         "Hu moments (cv2.matchShapes)": baseline_method(HuMomentsMatcher.from_library(info)),
         "elliptic Fourier (pyefd)": baseline_method(EllipticFourierMatcher.from_library(info)),

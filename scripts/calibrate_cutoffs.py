@@ -3,10 +3,10 @@
 Every library calibrates its own per-shape cutoffs when it is built
 (:func:`rockscan.core.calibrate.calibrate`; docs/decision.md). This script
 
-* draws, for the default library, each shape's simulated in-library scores
-  (measurements at outline noise up to the tolerance), its out-of-library
-  scores (shapes at the library's spacing around it, at noise 0 to the
-  tolerance) and the chosen cutoff: ``--figure PNG``
+* draws, for the default library, each shape's simulated in-library
+  distances and its out-of-library ones (shapes at the library's spacing
+  around it), clean and at the tolerance's outline noise, and the cutoff
+  chosen at each end: ``--figure PNG``
   (docs/figures/decision-calibration.png);
 * times a library build with and without the calibration at 14, 1,000 and
   10,000 shapes (``--timing``), as ratios within one run. The build without
@@ -31,7 +31,7 @@ from rockscan.io import default_library
 
 
 def figure(path: str, *, tolerance: float = 0.2) -> None:
-    """Per shape of the default library: in- and out-of-library scores and the cutoff."""
+    """Per shape of the default library, at both ends of its cutoff: in- and out-of-library distances."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -39,35 +39,46 @@ def figure(path: str, *, tolerance: float = 0.2) -> None:
 
     library = default_library()
     cal = calibrate(library.radii, tolerance=tolerance, keep_samples=True)
-    assert cal.samples is not None
+    assert cal.samples is not None and cal.clean_cutoffs is not None
+    s = cal.samples
     n = len(library)
-    fig, ax = plt.subplots(figsize=(9, 0.42 * n + 1.8))
+    fig, axes = plt.subplots(1, 2, figsize=(11, 0.42 * n + 1.9), sharey=True)
+    ends = (
+        ("clean samples (blur and jitter only)", s.inside_clean, s.outside[:, 0::2], cal.clean_cutoffs),
+        (f"outline noise {100 * tolerance:g}% (the tolerance)", s.inside, s.outside[:, 1::2], cal.cutoffs),
+    )
     rng = np.random.default_rng(0)
-    for i, k in enumerate(cal.samples.shapes):
-        y = n - 1 - i
-        inside, outside = cal.samples.inside[i], cal.samples.outside[i]
-        ax.scatter(inside, y + 0.12 + 0.08 * rng.uniform(-1, 1, inside.size), s=9, color="#1f77b4", alpha=0.7)
-        ax.scatter(
-            outside, y - 0.12 + 0.08 * rng.uniform(-1, 1, outside.size), s=9, color="#d62728", alpha=0.7
-        )
-        ax.plot([cal.cutoffs[k]] * 2, [y - 0.35, y + 0.35], color="black", lw=2)
-        if cal.crowded[k]:
-            ax.text(cal.cutoffs[k], y + 0.38, "crowded", fontsize=6, ha="center")
-    ax.set_yticks(np.arange(n)[::-1], [library.names[k] for k in cal.samples.shapes], fontsize=8)
-    ax.set_xlabel(
-        "sensor distance, the sample's own noise taken out, over its allowance (what a cutoff meets; "
-        "0: all noise)",
-        fontsize=9,
-    )
-    ax.set_xlim(left=-0.05)
-    ax.scatter(
-        [], [], s=9, color="#1f77b4", label=f"in library: outline noise {100 * tolerance:g}% (the tolerance)"
-    )
-    ax.scatter([], [], s=9, color="#d62728", label="out of library: shapes at the library's spacing")
-    ax.plot([], [], color="black", lw=2, label="calibrated cutoff")
-    ax.legend(fontsize=8, loc="upper center", bbox_to_anchor=(0.5, -0.09), ncol=3, frameon=False)
-    ax.set_title("Default library: simulated samples and each shape's calibrated cutoff", fontsize=10)
-    fig.tight_layout()
+    for ax, (title, inside, outside, cutoffs) in zip(axes, ends, strict=True):
+        for i, k in enumerate(s.shapes):
+            y = n - 1 - i
+            ax.scatter(
+                inside[i],
+                y + 0.12 + 0.08 * rng.uniform(-1, 1, inside.shape[1]),
+                s=9,
+                color="#1f77b4",
+                alpha=0.7,
+            )
+            ax.scatter(
+                outside[i],
+                y - 0.12 + 0.08 * rng.uniform(-1, 1, outside.shape[1]),
+                s=9,
+                color="#d62728",
+                alpha=0.7,
+            )
+            ax.plot([cutoffs[k]] * 2, [y - 0.35, y + 0.35], color="black", lw=2)
+        ax.set_title(title, fontsize=9)
+        ax.set_xscale("symlog", linthresh=0.1)
+        ax.set_xlim(left=0)
+        ax.set_xlabel("sensor distance to the shape, the sample's own noise taken out", fontsize=8)
+    axes[0].set_yticks(np.arange(n)[::-1], [library.names[k] for k in s.shapes], fontsize=8)
+    for k in np.flatnonzero(cal.crowded[s.shapes]):
+        axes[1].text(cal.cutoffs[s.shapes[k]], n - 1 - k + 0.38, "crowded", fontsize=6, ha="center")
+    axes[0].scatter([], [], s=9, color="#1f77b4", label="in library")
+    axes[0].scatter([], [], s=9, color="#d62728", label="out of library: shapes at the library's spacing")
+    axes[0].plot([], [], color="black", lw=2, label="calibrated cutoff (a sample between: interpolated)")
+    fig.legend(fontsize=8, loc="lower center", ncol=3, frameon=False)
+    fig.suptitle("Default library: simulated samples and each shape's calibrated cutoffs", fontsize=10)
+    fig.tight_layout(rect=(0, 0.05, 1, 1))
     fig.savefig(path, dpi=110)
     print(f"drew {path}")
 
@@ -91,7 +102,9 @@ def timing(sizes: list[int], *, full: bool) -> None:
         cal = calibrate(radii)
         t_cal = time.perf_counter() - start
         if n <= 1000 or full:
-            given = Calibration(cal.cutoffs, cal.spacing, cal.crowded, cal.calibrated)
+            given = Calibration(
+                cal.cutoffs, cal.spacing, cal.crowded, cal.calibrated, clean_cutoffs=cal.clean_cutoffs
+            )
             start = time.perf_counter()
             Library.from_radii(names, radii, calibration=given)
             t_plain = time.perf_counter() - start

@@ -52,13 +52,14 @@ def test_classify_all_finds_the_24_coins_as_circles(tmp_path, coins, oracle):
     records = [json.loads(line) for line in result.stdout.splitlines()]
     assert len(records) == 24
     assert all(r["nearest"] == "circle" for r in records)
-    # The calibrated decision keeps the coins within the tolerance's reach of a
-    # circle (13 of 24); the others are 4-6% RMS from one, farther than the
-    # default library's circle is from its three-faced blunt (docs/decision.md).
+    # The coins are ovals (axis ratios 1.03-1.18 in the hand-checked reference):
+    # a clean sample is judged by the circle's clean cutoff, which lies just
+    # inside the library's spacing, so all but the two most oval are accepted
+    # (docs/decision.md).
     assert all(
         r["match"] in ("circle", None) and r["interesting"] == (r["match"] is not None) for r in records
     )
-    assert sum(r["interesting"] for r in records) >= 12
+    assert sum(r["interesting"] for r in records) >= 22
     # One found rock per oracle coin, at its centroid, of its size.
     centroids = np.array([r["centroid"] for r in records])
     unmatched = set(range(24))

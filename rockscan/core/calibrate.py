@@ -25,25 +25,34 @@ harmonics 1 to ``COARSE_HARMONICS`` that tell any two rocks apart). Noise
 spread over harmonics that no shape has is left out; where shapes differ, the
 comparison is the matched filter's. All rotations are scored at once by FFT.
 
-:func:`calibrate` then gives each shape its cutoff:
+:func:`calibrate` then gives each shape two cutoffs on that distance (the
+sample's own noise taken out, :meth:`SensorMetric.corrected`): one for a
+sample at the tolerance's noise, one for a clean sample. A sample's cutoff
+runs linearly between them with its estimated noise (:func:`cutoff_at`).
+At each end:
 
-* in-library: ``n_samples`` simulated measurements of the shape at noise equal
-  to the tolerance (the worst the library promises to accept) and, for a shape
-  given by example photos, of each example (so the spread between examples
-  counts); their distances to the shape; the ``accept_quantile`` of them;
+* in-library: ``n_samples`` simulated measurements of the shape (at noise
+  equal to the tolerance, the worst the library promises to accept; or
+  clean) and, for a shape given by example photos, of each example (so the
+  spread between examples counts); the ``accept_quantile`` of their
+  distances to the shape. A clean sample is allowed at least what the
+  tolerated noise alone would put between it and its shape: a real outline
+  is never quite its shape;
 * out-of-library: the library's geometry. ``s_k``, the distance from shape k
   to its nearest other shape, is the scale at which the library tells shapes
   apart; shapes at that distance around k (random smooth deformations of it,
   and the shape continued beyond k away from its nearest neighbour), measured
-  at noise 0 to the tolerance, must be refused; the ``reject_quantile`` of
+  clean or at the tolerance, must be refused; the ``reject_quantile`` of
   their distances to k bounds the cutoff from above.
 
-When the two bounds cross (the tolerance's noise reaches the next shape), the
-cutoff is where the two empirical error rates meet, and the shape is marked
-``crowded``. Libraries of more than ``max_shapes`` shapes are calibrated on a
-seeded sample of that many shapes; every other shape gets the median of their
-cutoffs (the log-radii spread hardly depends on the shape), so the cost stays
-linear in the library's size with a small constant.
+The cutoff lies half-way (in log) between the two bounds. Where they cross
+(the tolerance's noise reaches the next shape), it is where the two
+empirical error rates, each over the share it is allowed, meet, and the
+shape is marked ``crowded``. Libraries of more than ``max_shapes`` shapes
+are calibrated on a seeded sample of that many shapes; every other shape
+gets the median of their cutoffs (the log-radii spread hardly depends on the
+shape), so the cost stays linear in the library's size with a small
+constant.
 """
 
 from __future__ import annotations
@@ -63,17 +72,19 @@ __all__ = [
     "CALIBRATION_VERSION",
     "COARSE_HARMONICS",
     "DEFAULT_TOLERANCE",
+    "KEEP_CROWDED",
     "Calibration",
     "CalibrationSamples",
     "SensorMetric",
     "SensorModel",
     "calibrate",
+    "cutoff_at",
     "log_noise_variance",
     "simulate_radii",
 ]
 
 #: Version of the calibration procedure, stored with its cutoffs.
-CALIBRATION_VERSION = 1
+CALIBRATION_VERSION = 2
 #: Harmonics that always count at least half: elongation, triangularity,
 #: squareness... where any two rocks differ first.
 COARSE_HARMONICS = 8
@@ -81,6 +92,9 @@ COARSE_HARMONICS = 8
 _MIN_FACTOR = 0.05
 #: Smallest radius, relative to the mean, that the log of a measurement takes.
 _LOG_FLOOR = 0.05
+#: Share of in-library samples a crowded shape's cutoff keeps at least, whatever
+#: shapes at the library's spacing it then lets in.
+KEEP_CROWDED = 0.9
 #: Harmonics in the noise band, and the simulated samples that measure its gain.
 _BAND = 24
 _GAIN_SAMPLES = 64
@@ -261,10 +275,10 @@ class SensorMetric:
         Expected noise part of ``d**2`` per unit of the band's median power,
         measured on simulated samples of the library's shapes.
     noise_floor : float
-        The noise part of ``d**2`` at the tolerance. Every sample is allowed
-        that much beside its own noise: a real outline is never quite the
-        shape it resembles (a coin is not a circle to the pixel), so even a
-        clean sample is given the room the tolerated noise would take.
+        The noise part of ``d**2`` at the tolerance: what
+        :meth:`noise_level` scales by, and what a clean sample is allowed at
+        least (a real outline is never quite the shape it resembles; a coin
+        is not a circle to the pixel).
     """
 
     weights: NDArray[np.float64]
@@ -366,16 +380,6 @@ class SensorMetric:
         ratio = self.noise_energy(radii) / max(self.noise_floor, 1e-300)
         return self.tolerance * np.sqrt(ratio)
 
-    def allowance(self, radii: ArrayLike) -> NDArray[np.float64]:
-        """The scale a sample's corrected distance is judged on, ``(...)``.
-
-        ``sqrt(noise + noise_floor)``: a noisier sample lies farther from its
-        shape by chance, so its corrected distance is divided by this before it
-        meets a cutoff. A cutoff ``c`` thus admits corrected distances up to
-        ``c * allowance``.
-        """
-        return np.sqrt(self.noise_energy(radii) + self.noise_floor)
-
     @property
     def n_angles(self) -> int:
         """Number of rays."""
@@ -455,14 +459,18 @@ class CalibrationSamples:
     inside : (n_calibrated, n_in) ndarray of float
         Distances of in-library measurements at the tolerance to their own shape.
     outside : (n_calibrated, n_out) ndarray of float
-        Distances of out-of-library shapes (at the library's spacing) to the shape.
+        Distances of out-of-library shapes (at the library's spacing) to the
+        shape: even columns measured clean, odd ones at the tolerance.
     shapes : (n_calibrated,) ndarray of int
         The calibrated shapes, by library index.
+    inside_clean : (n_calibrated, n_in) ndarray of float
+        Distances of clean in-library measurements (blur and jitter only).
     """
 
     inside: NDArray[np.float64]
     outside: NDArray[np.float64]
     shapes: NDArray[np.int64]
+    inside_clean: NDArray[np.float64]
 
 
 @dataclass(frozen=True, eq=False)
@@ -472,8 +480,9 @@ class Calibration:
     Attributes
     ----------
     cutoffs : (n_shapes,) ndarray of float
-        Largest :class:`SensorMetric` distance at which a sample still belongs
-        to each shape.
+        Largest :class:`SensorMetric` distance (the sample's own noise taken
+        out) at which a sample with outline noise at the tolerance still
+        belongs to each shape.
     spacing : (n_shapes,) ndarray of float
         Distance from each shape to its nearest other shape (inf for a
         one-shape library or a shape that was not calibrated).
@@ -491,6 +500,10 @@ class Calibration:
         Empty, or how the cutoffs came about when not from this procedure at build.
     samples : CalibrationSamples or None
         The simulated distances, when asked for.
+    clean_cutoffs : (n_shapes,) ndarray of float or None
+        The same for a sample without outline noise of its own; None: equal to
+        ``cutoffs``. A sample's cutoff runs between the two with its estimated
+        noise (:func:`cutoff_at`).
     """
 
     cutoffs: NDArray[np.float64]
@@ -502,18 +515,22 @@ class Calibration:
     version: int = CALIBRATION_VERSION
     note: str = ""
     samples: CalibrationSamples | None = field(default=None, repr=False)
+    clean_cutoffs: NDArray[np.float64] | None = None
 
     def __post_init__(self) -> None:
         n = np.shape(self.cutoffs)[0] if np.ndim(self.cutoffs) == 1 else -1
-        for name in ("cutoffs", "spacing", "crowded", "calibrated"):
+        if self.clean_cutoffs is None:
+            object.__setattr__(self, "clean_cutoffs", self.cutoffs)
+        for name in ("cutoffs", "spacing", "crowded", "calibrated", "clean_cutoffs"):
             value = np.asarray(getattr(self, name))
             if value.shape != (n,):
                 raise ParameterError("calibration arrays must be (n_shapes,), all of one length")
-        cutoffs = np.asarray(self.cutoffs, dtype=np.float64)
+        cutoffs = np.concatenate([np.asarray(self.cutoffs, float), np.asarray(self.clean_cutoffs, float)])
         if not np.all(np.isfinite(cutoffs)) or np.any(cutoffs < 0):
             raise ParameterError("cutoffs must be finite and non-negative")
         for name, dtype in (
             ("cutoffs", np.float64),
+            ("clean_cutoffs", np.float64),
             ("spacing", np.float64),
             ("crowded", bool),
             ("calibrated", bool),
@@ -527,6 +544,30 @@ class Calibration:
         return {"tolerance": self.tolerance, "seed": self.seed, "version": self.version, "note": self.note}
 
 
+def cutoff_at(calibration: Calibration, shape: int, noise: float) -> float:
+    """The cutoff shape ``shape`` sets for a sample with estimated outline noise ``noise``.
+
+    Linear in the noise from ``clean_cutoffs`` (no noise) to ``cutoffs`` (at
+    the tolerance and beyond): the spread of either side's distances grows
+    with the noise, so both ends are calibrated and the noise in between
+    interpolates them.
+
+    Parameters
+    ----------
+    calibration : Calibration
+    shape : int
+        Library index of the shape.
+    noise : float
+        The sample's outline noise (standard deviation of ``e``), as
+        :meth:`SensorMetric.noise_level` estimates it.
+    """
+    assert calibration.clean_cutoffs is not None
+    t = calibration.tolerance
+    share = min(max(noise / t, 0.0), 1.0) if t > 0 else 1.0
+    clean, noisy = float(calibration.clean_cutoffs[shape]), float(calibration.cutoffs[shape])
+    return clean + share * (noisy - clean)
+
+
 def calibrate(
     radii: ArrayLike,
     *,
@@ -534,7 +575,7 @@ def calibrate(
     tolerance: float = DEFAULT_TOLERANCE,
     model: SensorModel | None = None,
     n_samples: int = 24,
-    n_outside: int = 16,
+    n_outside: int = 24,
     accept_quantile: float = 0.97,
     reject_quantile: float = 0.03,
     max_shapes: int = 100,
@@ -557,10 +598,10 @@ def calibrate(
     n_samples : int
         Simulated in-library measurements per shape (and per example source).
     n_outside : int
-        Simulated out-of-library shapes per shape.
+        Simulated out-of-library shapes per shape, half of them clean.
     accept_quantile, reject_quantile : float
-        The cutoff keeps this share of in-library measurements at the
-        tolerance, and lets at most this share of out-of-library shapes in.
+        The bounds at each end: this share of in-library measurements lies
+        below the one, this share of out-of-library shapes below the other.
     max_shapes : int
         Shapes calibrated one by one; a larger library is calibrated on a
         seeded sample of this many.
@@ -591,47 +632,46 @@ def calibrate(
     if n_shapes > max_shapes:
         chosen = np.sort(rng.choice(n_shapes, size=max_shapes, replace=False))
     spacing, neighbour = _spacing(metric, radii, chosen)
-    inside = np.empty((chosen.size, 0))
-    in_rows = []
-    out_rows = []
+    rows: list[tuple[NDArray[np.float64], ...]] = []
     for start in range(0, chosen.size, 64):
         block = chosen[start : start + 64]
-        in_rows.append(_inside(metric, radii, example_list, block, n_samples, model, rng))
-        out_rows.append(
-            _outside(
-                metric,
-                radii,
-                block,
-                spacing[start : start + 64],
-                neighbour[start : start + 64],
-                spacing,
-                n_outside,
-                model,
-                rng,
-            )
+        noisy_in, clean_in = _inside(metric, radii, example_list, block, n_samples, model, rng)
+        outside = _outside(
+            metric,
+            radii,
+            block,
+            spacing[start : start + 64],
+            neighbour[start : start + 64],
+            spacing,
+            n_outside,
+            model,
+            rng,
         )
-    inside = np.concatenate(in_rows) if in_rows else inside
-    outside = np.concatenate(out_rows) if out_rows else np.empty((0, n_outside))
-    accept = np.quantile(inside, accept_quantile, axis=1)
-    reject = np.quantile(outside, reject_quantile, axis=1)
+        rows.append((noisy_in, clean_in, outside))
+    inside, inside_clean, outside = (np.concatenate([r[i] for r in rows]) for i in range(3))
+    # Out-of-library shapes alternate: even columns measured clean, odd at the tolerance.
+    outside_clean, outside_noisy = outside[:, 0::2], outside[:, 1::2]
     cut = np.empty(chosen.size)
+    clean_cut = np.empty(chosen.size)
     crowded = np.zeros(chosen.size, dtype=bool)
     for i in range(chosen.size):
-        if accept[i] <= reject[i]:
-            # Both bounds met: half-way in log between them keeps the margin on both sides.
-            cut[i] = math.sqrt(accept[i] * reject[i]) if accept[i] > 0 else reject[i] / 2.0
-        else:
-            cut[i] = _balanced(inside[i], outside[i])
-            crowded[i] = True
+        cut[i], crowded[i] = _cutoff(inside[i], outside_noisy[i], accept_quantile, reject_quantile)
+        # A real outline is never quite its shape: a clean sample is allowed at
+        # least the distance the tolerated noise alone would put it at.
+        clean_cut[i], _ = _cutoff(
+            inside_clean[i], outside_clean[i], accept_quantile, reject_quantile, math.sqrt(metric.noise_floor)
+        )
     cutoffs = np.full(n_shapes, float(np.median(cut)))
     cutoffs[chosen] = cut
+    clean_cutoffs = np.full(n_shapes, float(np.median(clean_cut)))
+    clean_cutoffs[chosen] = clean_cut
     full_spacing = np.full(n_shapes, np.inf)
     full_spacing[chosen] = spacing
     full_crowded = np.zeros(n_shapes, dtype=bool)
     full_crowded[chosen] = crowded
     calibrated = np.zeros(n_shapes, dtype=bool)
     calibrated[chosen] = True
-    samples = CalibrationSamples(inside, outside, chosen) if keep_samples else None
+    samples = CalibrationSamples(inside, outside, chosen, inside_clean) if keep_samples else None
     return Calibration(
         cutoffs=cutoffs,
         spacing=full_spacing,
@@ -640,7 +680,33 @@ def calibrate(
         tolerance=float(model.tolerance),
         seed=int(seed),
         samples=samples,
+        clean_cutoffs=clean_cutoffs,
     )
+
+
+def _cutoff(
+    inside: NDArray[np.float64],
+    outside: NDArray[np.float64],
+    accept_quantile: float,
+    reject_quantile: float,
+    floor: float = 0.0,
+) -> tuple[float, bool]:
+    """One end's cutoff from its in- and out-of-library distances, and whether the shape is crowded.
+
+    With ``accept`` the ``accept_quantile`` of the in-library distances (at
+    least ``floor`` when that is below ``reject``) and ``reject`` the
+    ``reject_quantile`` of the others:
+    half-way between them in log when ``accept <= reject``, a margin on both
+    sides; otherwise (crowded) where the two error rates, each over the share
+    it is allowed, meet.
+    """
+    accept = float(np.quantile(inside, accept_quantile))
+    reject = float(np.quantile(outside, reject_quantile))
+    accept = max(accept, min(floor, reject))
+    if accept <= reject:
+        return (math.sqrt(accept * reject) if accept > 0 else reject / 2.0), False
+    # The tolerance is a promise: a crowded shape still keeps KEEP_CROWDED of its samples.
+    return max(_balanced(inside, outside), float(np.quantile(inside, KEEP_CROWDED))), True
 
 
 def _calibrate_iv(
@@ -711,24 +777,29 @@ def _inside(
     model: SensorModel,
     rng: np.random.Generator,
 ) -> NDArray[np.float64]:
-    """(len(block), n_samples) distances of measurements at the tolerance to their shape."""
+    """(len(block), n_samples) distances to their shape of measurements at the tolerance, and clean ones."""
     picks = []
     for k in block:
         sources = examples[k] if examples[k] is not None else radii[k][None]
         # Every example is a source in turn: the spread between them counts.
         picks.append(sources[np.arange(n_samples) % sources.shape[0]])
-    # At the tolerance itself: scores grow with the noise (less than the
-    # distances do), so the cutoff that keeps the worst level keeps them all.
-    measured = simulate_radii(np.concatenate(picks), model.tolerance, model=model, rng=rng)
-    return _scores(metric, measured, np.repeat(block, n_samples)).reshape(block.size, n_samples)
+    picked = np.concatenate(picks)
+    own = np.repeat(block, n_samples)
+    # At the tolerance itself, the worst the library promises to accept; and
+    # clean (the photo's blur and jitter only), where the cutoff's other end is.
+    out = []
+    for noise in (model.tolerance, 0.0):
+        measured = simulate_radii(picked, noise, model=model, rng=rng)
+        out.append(_scores(metric, measured, own).reshape(block.size, n_samples))
+    return out[0], out[1]
 
 
 def _scores(
     metric: SensorMetric, measured: NDArray[np.float64], own: NDArray[np.int64]
 ) -> NDArray[np.float64]:
-    """What a cutoff meets: each measurement's corrected distance to its shape over its allowance."""
+    """What a cutoff meets: each measurement's distance to its shape with its own noise taken out."""
     dist_sq = metric.squared_distances(measured, own).min(axis=1)
-    return metric.corrected(measured, dist_sq[:, None])[:, 0] / metric.allowance(measured)
+    return metric.corrected(measured, dist_sq[:, None])[:, 0]
 
 
 def _outside(
@@ -747,7 +818,8 @@ def _outside(
     Half are random smooth deformations of k (spectra shaped like the metric's
     weights), half k continued beyond itself away from its nearest neighbour
     (with a smaller random deformation); each is scaled so that its distance
-    to k is the spacing, then measured at noise from 0 to the tolerance.
+    to k is the spacing, then measured clean (even columns) or at the
+    tolerance (odd columns).
     """
     n = radii.shape[1]
     n_freq = n // 2 + 1
@@ -766,10 +838,11 @@ def _outside(
         away /= np.maximum(np.sqrt(np.sum(away**2, axis=1, keepdims=True)), 1e-12)
         fields[:, n_random:] = away[:, None, :] + 0.3 * fields[:, n_random:]
     # Out-of-library shapes lie at least the library's typical spacing from every
-    # shape: a shape closer to its neighbour than that is measured at that spacing.
+    # shape, and no farther from k than that on some side of it, however far
+    # k's own neighbour is: every shape is measured at that spacing.
     finite = spacing_all[np.isfinite(spacing_all)]
     typical = float(np.median(finite)) if finite.size else np.inf
-    size = np.maximum(spacing, typical)
+    size = np.full(spacing.shape, typical)
     alone = ~np.isfinite(size)
     # A shape alone: twice what the tolerance's noise reaches in the weighted harmonics.
     size[alone] = 2.0 * math.sqrt(log_noise_variance(model.tolerance) * float(_full_sum(metric.weights, n)))
@@ -781,15 +854,17 @@ def _outside(
         d = np.sqrt(metric.squared_distances(shapes, own).min(axis=1)).reshape(b, n_outside)
         amplitude *= size[:, None] / np.maximum(d, 1e-12)
     shapes = np.exp(log_k[:, None, :] + amplitude[..., None] * fields).reshape(-1, n)
-    noise = model.tolerance * rng.random(shapes.shape[0])
+    # Even columns clean, odd at the tolerance: the two ends of the cutoff.
+    noise = np.tile(np.arange(n_outside) % 2 * model.tolerance, b)
     measured = simulate_radii(shapes, noise, model=model, rng=rng)
     return _scores(metric, measured, own).reshape(b, n_outside)
 
 
-def _balanced(inside: NDArray[np.float64], outside: NDArray[np.float64]) -> float:
-    """The cutoff where the share of in-library samples refused equals the share of others let in."""
+def _balanced(inside: NDArray[np.float64], outside: NDArray[np.float64], ratio: float = 1.0) -> float:
+    """The cutoff where the share of in-library samples refused is ``ratio`` times the share of others
+    let in (the ratio of the shares each error is allowed)."""
     candidates = np.unique(np.concatenate([inside, outside]))
     refused = 1.0 - np.searchsorted(np.sort(inside), candidates, side="right") / inside.size
     let_in = np.searchsorted(np.sort(outside), candidates, side="right") / outside.size
-    i = int(np.argmin(np.abs(refused - let_in)))
+    i = int(np.argmin(np.abs(refused - ratio * let_in)))
     return float(candidates[i])

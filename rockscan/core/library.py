@@ -375,10 +375,14 @@ class Library:
         return calibrate(self.radii)
 
     @property
+    def calibration_in_force(self) -> Calibration:
+        """The calibration that decides: the stored one, or one made on first use."""
+        return self.calibration if self.calibration is not None else self._calibrated_on_use
+
+    @property
     def cutoffs(self) -> NDArray[np.float64]:
-        """Per-shape cutoffs on the sensor distance (over the sample's allowance), ``(n_shapes,)``."""
-        calibration = self.calibration if self.calibration is not None else self._calibrated_on_use
-        return calibration.cutoffs
+        """Per-shape cutoffs on the sensor distance at the tolerance's noise, ``(n_shapes,)``."""
+        return self.calibration_in_force.cutoffs
 
     @cached_property
     def reference_map(self) -> NDArray[np.float64]:

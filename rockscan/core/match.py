@@ -39,6 +39,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from rockscan.core._threads import one_blas_thread
+from rockscan.core.calibrate import cutoff_at
 from rockscan.core.choices import METRICS, RANK_METRICS
 from rockscan.core.errors import ParameterError
 from rockscan.core.information import information_face, sample_term
@@ -482,7 +483,7 @@ def match_radii(radii: ArrayLike, library: Library, config: MatchConfig | None =
     sensor_sq = library.sensor_metric.squared_distances(radii)
     sensor_sq = sensor_sq.min(axis=0) if config.scan else sensor_sq[0]
     sensor = library.sensor_metric.corrected(radii, sensor_sq)
-    allowance = float(library.sensor_metric.allowance(radii))
+    noise = float(library.sensor_metric.noise_level(radii))
     chosen = dist[w_metric]
     best_shift = np.argmin(chosen, axis=0)
     w = chosen[best_shift, np.arange(chosen.shape[1])]
@@ -531,7 +532,7 @@ def match_radii(radii: ArrayLike, library: Library, config: MatchConfig | None =
     mean_w = float(w.mean())
     mscore = 1.0 - float(w.min()) / mean_w if mean_w > 0 else 1.0
     interesting, cutoff, decided_by = _decide(
-        config, library, k, float(sensor[k]), allowance, float(w[k]), mscore, residual
+        config, library, k, float(sensor[k]), noise, float(w[k]), mscore, residual
     )
     return Match(
         nearest=library.names[k],
@@ -572,7 +573,7 @@ def _decide(
     library: Library,
     k: int,
     sensor: float,
-    allowance: float,
+    noise: float,
     w: float,
     mscore: float,
     residual: float,
@@ -580,13 +581,14 @@ def _decide(
     """(interesting, the distance test's cutoff, the deciding test) for nearest shape k.
 
     The distance test: the sensor distance against shape k's calibrated
-    cutoff times the sample's allowance (its own noise), or, when
+    cutoff at the sample's estimated noise (:func:`rockscan.core.calibrate.cutoff_at`), or, when
     ``distance_cutoff`` is given, the ranked distance (the sensor distance, or
     ``w`` for another ranking metric) against it. Then the MScore and residual
     tests, only when their cutoffs are given.
     """
     if config.distance_cutoff is None:
-        cutoff, value, decider = float(library.cutoffs[k]) * allowance, sensor, "calibrated-cutoff"
+        cutoff = cutoff_at(library.calibration_in_force, k, noise)
+        value, decider = sensor, "calibrated-cutoff"
     else:
         ranked = sensor if config.resolved_metric(library) == "sensor" else w
         cutoff, value, decider = float(config.distance_cutoff), ranked, "distance-cutoff"

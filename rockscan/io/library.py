@@ -41,6 +41,8 @@ _CALIBRATED_VERSION = 2
 _ARRAYS = ("radii", "interest", "symmetry", "mean", "components", "eigenvalues", "weights")
 #: Per-shape calibration arrays (absent from files written before cutoffs were stored).
 _CUTOFF_ARRAYS = ("cutoffs", "cutoff_spacing", "cutoff_crowded", "cutoff_calibrated")
+#: Stored since calibration version 2 (the cutoff of a sample without noise of its own).
+_CLEAN_CUTOFFS = "cutoff_clean"
 
 
 def save_library(library: Library, path: str | os.PathLike[str]) -> None:
@@ -74,6 +76,7 @@ def save_library(library: Library, path: str | os.PathLike[str]) -> None:
         cutoff_arrays = dict(
             zip(_CUTOFF_ARRAYS, (cal.cutoffs, cal.spacing, cal.crowded, cal.calibrated), strict=True)
         )
+        cutoff_arrays[_CLEAN_CUTOFFS] = cal.clean_cutoffs
     arrays = {
         "metadata": np.frombuffer(json.dumps(metadata).encode("utf-8"), dtype=np.uint8),
         "radii": library.radii,
@@ -122,22 +125,7 @@ def load_library(path: str | os.PathLike[str]) -> Library:
             f"({LIBRARY_VERSION}); upgrade rockscan"
         )
     library = _library_from(meta, arrays, path)
-    if library.calibration is None and version < _CALIBRATED_VERSION:
-        from rockscan.core.calibrate import calibrate
-
-        # A file from before cutoffs were stored: its shapes are all that is
-        # needed to calibrate them as `library build` now does.
-        warnings.warn(
-            f"{path}: written before libraries stored their cutoffs; calibrated them now at the default "
-            "tolerance (rebuild it with `rockscan library build` to store them)",
-            RecalibratedWarning,
-            stacklevel=2,
-        )
-        calibration = calibrate(library.radii)
-        library = dataclasses.replace(
-            library, calibration=dataclasses.replace(calibration, note="calibrated when loaded")
-        )
-    return library
+    return _recalibrated(library, version, path)
 
 
 def _read_archive(path: Path) -> tuple[NDArray, dict[str, NDArray]]:
@@ -160,7 +148,8 @@ def _read_archive(path: Path) -> tuple[NDArray, dict[str, NDArray]]:
                     raise LibraryError(f"{path}: not a rockscan library (missing {', '.join(missing)})")
                 raw = archive["metadata"]
                 arrays = {k: archive[k] for k in _ARRAYS}
-                arrays.update({k: archive[k] for k in _CUTOFF_ARRAYS if k in archive.files})
+                stored = (*_CUTOFF_ARRAYS, _CLEAN_CUTOFFS)
+                arrays.update({k: archive[k] for k in stored if k in archive.files})
     except LibraryError:
         raise
     except (zipfile.BadZipFile, zlib.error, EOFError) as exc:
@@ -205,6 +194,38 @@ def _library_from(meta: dict[str, object], arrays: dict[str, NDArray], path: Pat
     return library
 
 
+def _recalibrated(library: Library, version: int, path: Path) -> Library:
+    """The library with cutoffs of the current calibration: those it stores, or
+    calibrated now (with a RecalibratedWarning) for a file that has none or whose
+    cutoffs come from an earlier calibration."""
+    from rockscan.core.calibrate import CALIBRATION_VERSION, calibrate
+
+    stored = library.calibration
+    if stored is None and version < _CALIBRATED_VERSION:
+        # A file from before cutoffs were stored: its shapes are all that is
+        # needed to calibrate them as `library build` now does.
+        message = (
+            f"{path}: written before libraries stored their cutoffs; calibrated them now at the default "
+            "tolerance (rebuild it with `rockscan library build` to store them)"
+        )
+        settings: dict[str, object] = {}
+    elif stored is not None and stored.version < CALIBRATION_VERSION:
+        # Cutoffs of an earlier calibration mean another test: recalibrated at the stored tolerance.
+        message = (
+            f"{path}: its cutoffs come from an earlier calibration (version {stored.version}); calibrated "
+            f"them now at its tolerance {stored.tolerance:g} (rebuild it with `rockscan library build` "
+            "to store them)"
+        )
+        settings = {"tolerance": stored.tolerance, "seed": stored.seed}
+    else:
+        return library
+    warnings.warn(message, RecalibratedWarning, stacklevel=3)
+    calibration = calibrate(library.radii, **settings)
+    return dataclasses.replace(
+        library, calibration=dataclasses.replace(calibration, note="calibrated when loaded")
+    )
+
+
 class RecalibratedWarning(UserWarning):
     """A library file without stored cutoffs was calibrated when it was loaded."""
 
@@ -225,6 +246,7 @@ def _read_calibration(meta: dict[str, object], arrays: dict[str, NDArray], path:
         spacing=arrays["cutoff_spacing"],
         crowded=arrays["cutoff_crowded"],
         calibrated=arrays["cutoff_calibrated"],
+        clean_cutoffs=arrays[_CLEAN_CUTOFFS] if _CLEAN_CUTOFFS in arrays else None,
         tolerance=float(info["tolerance"]),
         seed=int(info.get("seed", 0)),
         version=int(info.get("version", 1)),

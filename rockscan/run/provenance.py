@@ -43,7 +43,8 @@ def library_hash(library: Library) -> str:
     """A content hash of a library: its shapes, not the file they came in.
 
     SHA-256 of the names, interests, symmetries, face settings, basis size and
-    calibration tolerance (canonical JSON), and the radii and calibrated cutoffs
+    calibration tolerance (canonical JSON), and the radii and calibrated cutoffs (at the
+    tolerance and clean)
     as little-endian float64 rounded to 10 decimals. The basis itself (a BLAS
     result) is left out, so the hash is the same in every process and at every
     thread count; the same spec built twice, or saved and loaded, hashes the same.
@@ -68,6 +69,7 @@ def library_hash(library: Library) -> str:
     digest = hashlib.sha256(json.dumps(meta, sort_keys=True, separators=(",", ":")).encode("utf-8"))
     digest.update(np.round(np.asarray(library.radii, dtype="<f8"), 10).tobytes())
     digest.update(np.round(np.asarray(library.cutoffs, dtype="<f8"), 10).tobytes())
+    digest.update(np.round(np.asarray(library.calibration_in_force.clean_cutoffs, dtype="<f8"), 10).tobytes())
     return digest.hexdigest()
 
 
