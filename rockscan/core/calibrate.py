@@ -632,6 +632,54 @@ def calibrate(
     if n_shapes > max_shapes:
         chosen = np.sort(rng.choice(n_shapes, size=max_shapes, replace=False))
     spacing, neighbour = _spacing(metric, radii, chosen)
+    inside, inside_clean, outside = _simulate(
+        metric, radii, example_list, chosen, spacing, neighbour, n_samples, n_outside, model, rng
+    )
+    # Out-of-library shapes alternate: even columns measured clean, odd at the tolerance.
+    outside_clean, outside_noisy = outside[:, 0::2], outside[:, 1::2]
+    cut = np.empty(chosen.size)
+    clean_cut = np.empty(chosen.size)
+    crowded = np.zeros(chosen.size, dtype=bool)
+    for i in range(chosen.size):
+        cut[i], crowded[i] = _cutoff(inside[i], outside_noisy[i], accept_quantile, reject_quantile)
+        # A real outline is never quite its shape: a clean sample is allowed at
+        # least the distance the tolerated noise alone would put it at.
+        clean_cut[i], _ = _cutoff(
+            inside_clean[i], outside_clean[i], accept_quantile, reject_quantile, math.sqrt(metric.noise_floor)
+        )
+    # Shapes left out of a large library's sample take the median of those calibrated.
+    cutoffs = _every_shape(cut, chosen, n_shapes, float(np.median(cut)))
+    clean_cutoffs = _every_shape(clean_cut, chosen, n_shapes, float(np.median(clean_cut)))
+    full_spacing = _every_shape(spacing, chosen, n_shapes, np.inf)
+    full_crowded = _every_shape(crowded, chosen, n_shapes, False)
+    calibrated = _every_shape(np.ones(chosen.size, dtype=bool), chosen, n_shapes, False)
+    samples = CalibrationSamples(inside, outside, chosen, inside_clean) if keep_samples else None
+    return Calibration(
+        cutoffs=cutoffs,
+        spacing=full_spacing,
+        crowded=full_crowded,
+        calibrated=calibrated,
+        tolerance=float(model.tolerance),
+        seed=int(seed),
+        samples=samples,
+        clean_cutoffs=clean_cutoffs,
+    )
+
+
+def _simulate(
+    metric: SensorMetric,
+    radii: NDArray[np.float64],
+    example_list: list[NDArray[np.float64] | None],
+    chosen: NDArray[np.int64],
+    spacing: NDArray[np.float64],
+    neighbour: NDArray[np.int64],
+    n_samples: int,
+    n_outside: int,
+    model: SensorModel,
+    rng: np.random.Generator,
+) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
+    """Distances of the simulated samples of the chosen shapes, 64 shapes at a time:
+    in library at the tolerance, in library clean, and out of library."""
     rows: list[tuple[NDArray[np.float64], ...]] = []
     for start in range(0, chosen.size, 64):
         block = chosen[start : start + 64]
@@ -649,39 +697,14 @@ def calibrate(
         )
         rows.append((noisy_in, clean_in, outside))
     inside, inside_clean, outside = (np.concatenate([r[i] for r in rows]) for i in range(3))
-    # Out-of-library shapes alternate: even columns measured clean, odd at the tolerance.
-    outside_clean, outside_noisy = outside[:, 0::2], outside[:, 1::2]
-    cut = np.empty(chosen.size)
-    clean_cut = np.empty(chosen.size)
-    crowded = np.zeros(chosen.size, dtype=bool)
-    for i in range(chosen.size):
-        cut[i], crowded[i] = _cutoff(inside[i], outside_noisy[i], accept_quantile, reject_quantile)
-        # A real outline is never quite its shape: a clean sample is allowed at
-        # least the distance the tolerated noise alone would put it at.
-        clean_cut[i], _ = _cutoff(
-            inside_clean[i], outside_clean[i], accept_quantile, reject_quantile, math.sqrt(metric.noise_floor)
-        )
-    cutoffs = np.full(n_shapes, float(np.median(cut)))
-    cutoffs[chosen] = cut
-    clean_cutoffs = np.full(n_shapes, float(np.median(clean_cut)))
-    clean_cutoffs[chosen] = clean_cut
-    full_spacing = np.full(n_shapes, np.inf)
-    full_spacing[chosen] = spacing
-    full_crowded = np.zeros(n_shapes, dtype=bool)
-    full_crowded[chosen] = crowded
-    calibrated = np.zeros(n_shapes, dtype=bool)
-    calibrated[chosen] = True
-    samples = CalibrationSamples(inside, outside, chosen, inside_clean) if keep_samples else None
-    return Calibration(
-        cutoffs=cutoffs,
-        spacing=full_spacing,
-        crowded=full_crowded,
-        calibrated=calibrated,
-        tolerance=float(model.tolerance),
-        seed=int(seed),
-        samples=samples,
-        clean_cutoffs=clean_cutoffs,
-    )
+    return inside, inside_clean, outside
+
+
+def _every_shape(values: NDArray, chosen: NDArray[np.int64], n_shapes: int, fill: object) -> NDArray:
+    """Per-shape values of the chosen shapes spread over the library, ``fill`` elsewhere."""
+    full = np.full(n_shapes, fill, dtype=np.asarray(values).dtype)
+    full[chosen] = values
+    return full
 
 
 def _cutoff(
