@@ -46,7 +46,7 @@ from rockscan.superformula import SuperformulaParams
 
 if TYPE_CHECKING:
     from rockscan.match import ScanTemplates
-    from rockscan.prefilter import Prefilter
+    from rockscan.prefilter import Prefilter, SensorPrefilter
 
 __all__ = [
     "EXACT_LIMIT",
@@ -398,6 +398,14 @@ class Library:
 
         return Prefilter.from_library(self)
 
+    @cached_property
+    def sensor_prefilter(self) -> SensorPrefilter | None:
+        """What prunes the sensor pass of a large library; None for a small one
+        (see prefilter.py)."""
+        from rockscan.prefilter import SensorPrefilter
+
+        return SensorPrefilter.from_metric(self.sensor_metric)
+
     def set_prefilter(self, prefilter: Prefilter | None) -> None:
         """Attach a prefilter computed elsewhere (at build, or read from a file), or
         None to scan every shape. Only the shortlist of later matches changes."""
@@ -414,6 +422,9 @@ class Library:
             if cached in self.__dict__:
                 object.__setattr__(copy, cached, self.__dict__[cached])
         copy.set_prefilter(None)
+        object.__setattr__(copy, "sensor_prefilter", None)
+        if "sensor_metric" in self.__dict__:
+            object.__setattr__(copy, "sensor_metric", self.__dict__["sensor_metric"])
         return copy
 
     @classmethod
