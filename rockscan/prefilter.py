@@ -258,7 +258,7 @@ class Prefilter:
         least ``max(||c - S_k|| - r, 0)`` from shape k. The work is ``_ARCS``
         vectors per shape instead of one per rotation.
         """
-        sample, sample_sq = self._sample(omega, None)
+        sample, _ = self._sample(omega, None)
         n_rot = sample.shape[0]
         arcs = min(_ARCS, n_rot)
         edges = np.linspace(0, n_rot, arcs + 1).astype(np.int64)
