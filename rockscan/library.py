@@ -21,7 +21,9 @@ pruned by a lower bound (rockscan/prefilter.py).
 from __future__ import annotations
 
 import re
+from collections import deque
 from collections.abc import Sequence
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
 from functools import cached_property
 from typing import TYPE_CHECKING
@@ -69,6 +71,8 @@ EXACT_LIMIT = 1000
 _CHUNK = 256
 #: Step of the radius table of section probabilities (map units); see _FaceTable.
 _TABLE_STEP = 5e-4
+#: Threads that make a large build's faces (the machine's two cores).
+_BUILD_THREADS = 2
 
 
 @dataclass(frozen=True)
@@ -322,17 +326,26 @@ class Library:
         radii = np.empty((len(params), config.n_angles))
         # A small library's radii one shape at a time, as they always were (to the
         # last bit); a large one's in vectorised chunks (to rounding, 1e-15).
-        step = 1 if len(params) <= EXACT_LIMIT else _CHUNK
-        for start in range(0, len(params), step):
-            chunk = params[start : start + step]
-            try:
-                if step == 1:
-                    radii[start] = shape_radii(chunk[0], config.n_angles)
-                else:
-                    radii[start : start + len(chunk)] = shapes_radii(chunk, config.n_angles)
-            except ParameterError as exc:
-                bad = next(i for i, p in enumerate(chunk) if not _closes(p, config.n_angles))
-                raise LibraryError(f"shape {names[start + bad]!r}: {exc}") from None
+        if len(params) <= EXACT_LIMIT:
+            for i, p in enumerate(params):
+                try:
+                    radii[i] = shape_radii(p, config.n_angles)
+                except ParameterError as exc:
+                    raise LibraryError(f"shape {names[i]!r}: {exc}") from None
+        else:
+            starts = range(0, len(params), _CHUNK)
+            chunks = _in_threads(
+                lambda start: closed_shapes_radii(params[start : start + _CHUNK], config.n_angles),
+                starts,
+                _BUILD_THREADS,
+            )
+            for start, (values, closed) in zip(starts, chunks, strict=True):
+                radii[start : start + values.shape[0]] = values
+                for bad in start + np.flatnonzero(~closed):  # the one-shape check says why
+                    try:
+                        radii[bad] = shape_radii(params[bad], config.n_angles)
+                    except ParameterError as exc:
+                        raise LibraryError(f"shape {names[bad]!r}: {exc}") from None
         return cls.from_radii(
             names,
             radii,
@@ -498,14 +511,6 @@ def closed_shapes_radii(
     return centered / centered.mean(axis=1, keepdims=True), closed
 
 
-def _closes(params: SuperformulaParams, n_angles: int) -> bool:
-    try:
-        shape_radii(params, n_angles)
-    except ParameterError:
-        return False
-    return True
-
-
 def _recentered(radii: NDArray[np.float64]) -> NDArray[np.float64]:
     """:func:`rockscan.polar.recenter_radii` of many outlines, (n, n_angles) -> (n, n_angles).
 
@@ -604,27 +609,30 @@ class _FaceTable:
         # d/dr [Phi((e_{j+1} - r)/sigma) - Phi((e_j - r)/sigma)], in units of the step.
         slopes = (density[:, :-1] - density[:, 1:]) / config.sigma * _TABLE_STEP
         v0, v1, s0, s1 = values[:-1], values[1:], slopes[:-1], slopes[1:]
-        # Each cell's Hermite cubic as a polynomial in t, lowest power first.
-        self.coefficients = np.stack([v0, s0, 3 * (v1 - v0) - 2 * s0 - s1, 2 * (v0 - v1) + s0 + s1], axis=1)
+        # Each cell's Hermite cubic as a polynomial in t, lowest power first:
+        # (4, n_cells, n_sections), one contiguous table per power.
+        self.coefficients = np.stack([v0, s0, 3 * (v1 - v0) - 2 * s0 - s1, 2 * (v0 - v1) + s0 + s1])
         self.weights = reference_weights(config)
 
     def faces(self, radii: NDArray[np.float64]) -> NDArray[np.float64]:
         """(n, n_angles) radii -> (n, n_angles, n_sections) faces."""
         u = np.minimum(normalize_radii(radii), self.r_max) / _TABLE_STEP
-        cell = np.minimum(np.floor(u).astype(np.int64), self.coefficients.shape[0] - 1)
-        t = (u - cell)[..., None]
-        out = np.empty((*radii.shape, self.coefficients.shape[2]))
-        for start in range(0, radii.shape[0], 16):  # blocks that stay in cache
-            block = slice(start, start + 16)
-            c = self.coefficients[cell[block]]
-            tb = t[block]
-            q = c[..., 3, :] * tb
-            q += c[..., 2, :]
+        cell = np.minimum(np.floor(u).astype(np.int64), self.coefficients.shape[1] - 1)
+        t = u - cell
+        c0, c1, c2, c3 = self.coefficients
+        out = np.empty((*radii.shape, c0.shape[1]))
+        for start in range(0, radii.shape[0], 8):  # blocks that stay in cache
+            block = slice(start, start + 8)
+            rows, tb = cell[block].ravel(), t[block].reshape(-1, 1)
+            # Horner's rule, one row of the table per ray and power at a time.
+            q = np.take(c3, rows, axis=0)
             q *= tb
-            q += c[..., 1, :]
+            q += np.take(c2, rows, axis=0)
             q *= tb
-            q += c[..., 0, :]
-            np.multiply(q, self.weights, out=out[block])
+            q += np.take(c1, rows, axis=0)
+            q *= tb
+            q += np.take(c0, rows, axis=0)
+            np.multiply(q.reshape(-1, *self.weights.shape), self.weights, out=out[block])
         return out
 
 
@@ -653,5 +661,27 @@ def _streamed_basis(
     n_keep = STREAM_COMPONENTS if n_components is None else int(n_components)
     rng = np.random.default_rng(seed)
     sample = np.sort(rng.choice(n, size=min(n, max(STREAM_FIT_FACES, 2 * n_keep)), replace=False))
-    chunks = (faces_of(slice(start, start + _CHUNK)) for start in range(0, n, _CHUNK))
+    starts = range(0, n, _CHUNK)
+    if faces is None and _BUILD_THREADS > 1:
+        chunks = _in_threads(lambda start: faces_of(slice(start, start + _CHUNK)), starts, _BUILD_THREADS)
+    else:
+        chunks = (faces_of(slice(start, start + _CHUNK)) for start in starts)
     return EigenBasis.from_face_stream(faces_of(sample), chunks, n_components=n_keep)
+
+
+def _in_threads(function, items, workers: int):  # type: ignore[no-untyped-def]
+    """``function`` of each item, in order, computed ``workers`` at a time in threads.
+
+    NumPy's loops release the interpreter lock, so the faces of the next chunks
+    are made while the caller projects the last one; at most ``workers + 1``
+    results exist at once (memory stays one chunk per thread), and the results
+    come in order, so the sums over them are the same as in one thread.
+    """
+    with ThreadPoolExecutor(max_workers=workers) as pool:
+        pending: deque = deque()
+        for item in items:
+            pending.append(pool.submit(function, item))
+            if len(pending) > workers:
+                yield pending.popleft().result()
+        while pending:
+            yield pending.popleft().result()

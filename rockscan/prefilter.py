@@ -52,6 +52,7 @@ from rockscan.errors import ParameterError
 if TYPE_CHECKING:
     from rockscan.calibrate import SensorMetric
     from rockscan.library import Library
+    from rockscan.match import ScanTemplates
 
 __all__ = ["EXACT_SCAN_LIMIT", "Prefilter", "SensorPrefilter", "SensorShortlist", "Shortlist", "features_of"]
 
@@ -330,16 +331,32 @@ class Prefilter:
         # The coarse bound of every shape, then the fine one of those it leaves in:
         # any shape whose bound exceeds a distance already found cannot be nearest.
         coarse = self.coarse_bounds(omega, extra_sq)
-        first = self.first(coarse)
-        weights = templates.shape_weights[first]
-        exact_sq = norm_sq[:, None] + templates.omega_norm_sq[None, first] - 2.0 * (omega @ weights.T)
-        best = float(exact_sq.min())
+        best = self._best_of(omega, norm_sq, templates, self.first(coarse))
         left = np.flatnonzero(coarse <= best)
         fine = self.bounds(omega, extra_sq, rows=left)
+        if left.size > self.n_first:
+            # The shapes of smallest fine bound lower the distance to prune with.
+            best = min(best, self._best_of(omega, norm_sq, templates, left[self.first(fine)]))
         kept = left[fine <= best]
-        index = np.union1d(kept, self.reference)
-        is_reference = ~np.isin(index, kept)
+        mask = np.zeros(self.n_shapes, dtype=bool)
+        mask[self.reference] = True
+        mask[kept] = True
+        index = np.flatnonzero(mask)
+        mask[:] = True
+        mask[kept] = False
+        is_reference = mask[index]
         return Shortlist(index, np.sqrt(coarse), is_reference, spectrum, omega)
+
+    @staticmethod
+    def _best_of(
+        omega: NDArray[np.float64],
+        norm_sq: NDArray[np.float64],
+        templates: ScanTemplates,
+        rows: NDArray[np.int64],
+    ) -> float:
+        """The least exact squared distance, over rotations, of some shapes."""
+        cross = omega @ templates.shape_weights[rows].T
+        return float((norm_sq[:, None] + templates.omega_norm_sq[None, rows] - 2.0 * cross).min())
 
     def around(
         self,
@@ -355,8 +372,13 @@ class Prefilter:
         the others are ``estimate`` times the ratio over the reference sample.
         """
         spectrum, omega = library.scan_templates.coordinates(q)
-        index = np.union1d(np.asarray(shapes, dtype=np.int64), self.reference)
-        is_reference = ~np.isin(index, shapes)
+        mask = np.zeros(self.n_shapes, dtype=bool)
+        mask[self.reference] = True
+        mask[shapes] = True
+        index = np.flatnonzero(mask)
+        mask[:] = True
+        mask[shapes] = False
+        is_reference = mask[index]
         return Shortlist(index, np.asarray(estimate, dtype=np.float64), is_reference, spectrum, omega)
 
 
@@ -504,8 +526,9 @@ class SensorPrefilter:
         k = min(self.n_first, lb.size)
         first = np.argpartition(lb, k - 1)[:k] if k < lb.size else np.arange(lb.size)
         first_sq = _sensor_min_sq(metric, spectrum, first)
-        rest = np.flatnonzero(lb <= float(first_sq.min()))
-        rest = rest[~np.isin(rest, first)]
+        below = lb <= float(first_sq.min())
+        below[first] = False
+        rest = np.flatnonzero(below)
         index = np.concatenate([first, rest])
         dist_sq = np.concatenate([first_sq, _sensor_min_sq(metric, spectrum, rest)])
         order = np.argsort(index)
