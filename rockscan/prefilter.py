@@ -337,15 +337,18 @@ class Prefilter:
         if left.size > self.n_first:
             # The shapes of smallest fine bound lower the distance to prune with.
             best = min(best, self._best_of(omega, norm_sq, templates, left[self.first(fine)]))
-        kept = left[fine <= best]
+        index, is_reference = self._with_reference(left[fine <= best])
+        return Shortlist(index, np.sqrt(coarse), is_reference, spectrum, omega)
+
+    def _with_reference(self, kept: NDArray[np.int64]) -> tuple[NDArray[np.int64], NDArray[np.bool_]]:
+        """``kept`` and the reference sample, increasing; which are there only as reference."""
         mask = np.zeros(self.n_shapes, dtype=bool)
         mask[self.reference] = True
         mask[kept] = True
         index = np.flatnonzero(mask)
         mask[:] = True
         mask[kept] = False
-        is_reference = mask[index]
-        return Shortlist(index, np.sqrt(coarse), is_reference, spectrum, omega)
+        return index, mask[index]
 
     @staticmethod
     def _best_of(
@@ -372,13 +375,7 @@ class Prefilter:
         the others are ``estimate`` times the ratio over the reference sample.
         """
         spectrum, omega = library.scan_templates.coordinates(q)
-        mask = np.zeros(self.n_shapes, dtype=bool)
-        mask[self.reference] = True
-        mask[shapes] = True
-        index = np.flatnonzero(mask)
-        mask[:] = True
-        mask[shapes] = False
-        is_reference = mask[index]
+        index, is_reference = self._with_reference(np.asarray(shapes, dtype=np.int64))
         return Shortlist(index, np.asarray(estimate, dtype=np.float64), is_reference, spectrum, omega)
 
 
