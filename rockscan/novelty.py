@@ -45,6 +45,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from rockscan._choices import NOVELTY_METRICS
+from rockscan._threads import one_blas_thread
 from rockscan.calibrate import CALIBRATION_VERSION, Calibration
 from rockscan.eigen import EigenBasis
 from rockscan.errors import LibraryError, ParameterError
@@ -385,6 +386,7 @@ class _Growth:
             self.features[: prefilter.n_shapes, : prefilter.features.shape[1]] = prefilter.features
             self.feature_norm_sq = _grown(prefilter.norm_sq, cap)
 
+    @one_blas_thread
     def append(self, name: str, radii: NDArray[np.float64]) -> Library:
         """The library with one more shape, grown in place (see the class docstring)."""
         lib = self.latest
