@@ -427,6 +427,12 @@ class Library:
         # A cached property is a plain attribute of the instance once computed.
         object.__setattr__(self, "prefilter", prefilter)
 
+    def set_sensor_prefilter(self, sensor_prefilter: SensorPrefilter | None) -> None:
+        """Attach the sensor pass's prefilter (or None: every shape's sensor distance is computed)."""
+        if sensor_prefilter is not None and sensor_prefilter.n_shapes != len(self):
+            raise LibraryError("the sensor prefilter does not fit the library's shapes")
+        object.__setattr__(self, "sensor_prefilter", sensor_prefilter)
+
     def scanned_whole(self) -> Library:
         """The same library without a prefilter: every match scans every shape (the
         exhaustive answer a pruned scan is measured against)."""
@@ -435,7 +441,7 @@ class Library:
             if cached in self.__dict__:
                 object.__setattr__(copy, cached, self.__dict__[cached])
         copy.set_prefilter(None)
-        object.__setattr__(copy, "sensor_prefilter", None)
+        copy.set_sensor_prefilter(None)
         if "sensor_metric" in self.__dict__:
             object.__setattr__(copy, "sensor_metric", self.__dict__["sensor_metric"])
         return copy
