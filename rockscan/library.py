@@ -584,9 +584,9 @@ def symmetry_orders(radii: ArrayLike, *, tol: float = 1e-4, max_order: int = 36)
         return np.zeros(0, dtype=np.int64)
     energy = np.abs(np.fft.rfft(radii, axis=1)[:, 1:]) ** 2
     total = energy.sum(axis=1)
-    harmonic = np.arange(1, energy.shape[1] + 1)
     orders = np.arange(min(max_order, energy.shape[1]), 1, -1)
-    off = np.stack([energy[:, harmonic % k != 0].sum(axis=1) for k in orders], axis=1)
+    # The energy off the multiples of k: all of it less that on them (a strided view, no copy).
+    off = np.stack([total - energy[:, k - 1 :: k].sum(axis=1) for k in orders], axis=1)
     fits = off <= tol * total[:, None]
     out = np.where(fits.any(axis=1), orders[np.argmax(fits, axis=1)], 1)
     out[total <= (1e-9 * radii.mean(axis=1)) ** 2 * radii.shape[1] ** 2] = 0
