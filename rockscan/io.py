@@ -63,6 +63,8 @@ IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".tif", ".tiff", ".bmp")
 _ARRAYS = ("radii", "interest", "symmetry", "mean", "components", "eigenvalues", "weights")
 #: Per-shape calibration arrays (absent from files written before cutoffs were stored).
 _CUTOFF_ARRAYS = ("cutoffs", "cutoff_spacing", "cutoff_crowded", "cutoff_calibrated")
+#: A large library's sensor metric (optional: made on first use when absent).
+_SENSOR_ARRAYS = ("sensor_weights", "sensor_spectra", "sensor_norm_sq")
 _SHAPE_KEYS = {"name", "interest", "images", *SuperformulaParams.names()}
 
 
@@ -228,6 +230,7 @@ def save_library(library: Library, path: str | os.PathLike[str]) -> None:
         cutoff_arrays = dict(
             zip(_CUTOFF_ARRAYS, (cal.cutoffs, cal.spacing, cal.crowded, cal.calibrated), strict=True)
         )
+    sensor_arrays = _sensor_arrays(library, metadata)  # adds its record to the metadata
     arrays = {
         "metadata": np.frombuffer(json.dumps(metadata).encode("utf-8"), dtype=np.uint8),
         "radii": library.radii,
@@ -238,6 +241,7 @@ def save_library(library: Library, path: str | os.PathLike[str]) -> None:
         "eigenvalues": library.basis.eigenvalues,
         "weights": library.basis.weights,
         **cutoff_arrays,
+        **sensor_arrays,
     }
     path = Path(path)
     tmp = path.with_name(f".{path.name}.tmp{os.getpid()}")
@@ -295,6 +299,7 @@ def load_library(path: str | os.PathLike[str]) -> Library:
                 raw = archive["metadata"]
                 arrays = {k: archive[k] for k in _ARRAYS}
                 arrays.update({k: archive[k] for k in _CUTOFF_ARRAYS if k in archive.files})
+                arrays.update({k: archive[k] for k in _SENSOR_ARRAYS if k in archive.files})
     except LibraryError:
         raise
     except (zipfile.BadZipFile, zlib.error, EOFError) as exc:
@@ -332,6 +337,7 @@ def load_library(path: str | os.PathLike[str]) -> Library:
             basis=basis,
             calibration=_read_calibration(meta, arrays, path),
         )
+        _attach_sensor_metric(library, meta, arrays)
     except ParameterError as exc:
         raise LibraryError(f"{path}: library cutoffs are inconsistent ({_first_line(exc)})") from None
     except (KeyError, TypeError, ValueError, OverflowError) as exc:
@@ -352,6 +358,57 @@ def load_library(path: str | os.PathLike[str]) -> Library:
             library, calibration=dataclasses.replace(calibration, note="calibrated when loaded")
         )
     return library
+
+
+def _sensor_arrays(library: Library, metadata: dict[str, object]) -> dict[str, NDArray]:
+    """A large library's sensor metric, so that loading it need not remake it (optional fields)."""
+    from rockscan.library import EXACT_LIMIT
+
+    if len(library) <= EXACT_LIMIT:
+        return {}
+    metric = library.sensor_metric
+    metadata["sensor"] = {
+        "tolerance": metric.tolerance,
+        "noise_band": list(metric.noise_band),
+        "noise_gain": metric.noise_gain,
+        "noise_floor": metric.noise_floor,
+    }
+    # Complex numbers as pairs of floats: library files hold real arrays only.
+    spectra = np.ascontiguousarray(metric.spectra, dtype=np.complex128).view(np.float64)
+    return dict(zip(_SENSOR_ARRAYS, (metric.weights, spectra, metric.norm_sq), strict=True))
+
+
+def _attach_sensor_metric(library: Library, meta: dict[str, object], arrays: dict[str, NDArray]) -> None:
+    """The stored sensor metric, when the file has one (files without it make it on first use)."""
+    from rockscan.calibrate import SensorMetric
+
+    sensor = meta.get("sensor")
+    if not isinstance(sensor, dict) or any(k not in arrays for k in _SENSOR_ARRAYS):
+        return
+    weights, pairs, norm_sq = (np.asarray(arrays[k]) for k in _SENSOR_ARRAYS)
+    n_freq = library.face_config.n_angles // 2 + 1
+    if pairs.shape != (len(library), 2 * n_freq) or pairs.dtype != np.float64:
+        raise ValueError("its sensor metric does not fit its shapes")
+    spectra = np.ascontiguousarray(pairs).view(np.complex128)
+    if (
+        weights.shape != (n_freq,)
+        or spectra.shape != (len(library), n_freq)
+        or norm_sq.shape != (len(library),)
+        or not all(np.all(np.isfinite(a)) for a in (weights, spectra, norm_sq))
+    ):
+        raise ValueError("its sensor metric does not fit its shapes")
+    lo, hi = (int(v) for v in sensor["noise_band"])
+    metric = SensorMetric(
+        weights=weights.astype(np.float64),
+        spectra=spectra.astype(np.complex128),
+        norm_sq=norm_sq.astype(np.float64),
+        tolerance=float(sensor["tolerance"]),
+        noise_band=(lo, hi),
+        noise_gain=float(sensor["noise_gain"]),
+        noise_floor=float(sensor["noise_floor"]),
+    )
+    if metric.tolerance == library.tolerance:  # else made anew for the library's tolerance
+        object.__setattr__(library, "sensor_metric", metric)
 
 
 class RecalibratedWarning(UserWarning):

@@ -289,11 +289,14 @@ class Library:
                 basis = EigenBasis.from_faces(face_array, n_components=n_components)
             else:
                 basis = _streamed_basis(radii, config, face_array, n_components)
+            metric = None
             if calibration is None:
-                calibration = calibrate(radii, examples=examples, tolerance=tolerance)
+                # The metric calibrate needs is the library's own: made once, kept.
+                metric = SensorMetric.from_radii(radii, tolerance)
+                calibration = calibrate(radii, examples=examples, tolerance=tolerance, metric=metric)
         except ParameterError as exc:
             raise LibraryError(str(exc)) from None
-        return cls(
+        library = cls(
             names=names,
             radii=radii,
             params=tuple(params) if params is not None else (None,) * len(names),
@@ -303,6 +306,9 @@ class Library:
             basis=basis,
             calibration=calibration,
         )
+        if metric is not None:
+            object.__setattr__(library, "sensor_metric", metric)
+        return library
 
     @classmethod
     def from_shapes(

@@ -146,3 +146,32 @@ def test_pruned_sensor_ranking_finds_the_exhaustive_nearest(large_lib, metric):
         # Shapes left out carry a lower bound of their sensor distance, above the nearest one.
         assert np.all(pruned.sensor_distances <= full.sensor_distances + 1e-9)
         assert pruned.mscore == pytest.approx(full.mscore, abs=0.05)
+
+
+def test_a_large_librarys_file_keeps_its_sensor_metric(large_lib, tmp_path, monkeypatch):
+    import rockscan.library
+    from rockscan.errors import LibraryError
+    from rockscan.io import load_library, save_library
+
+    monkeypatch.setattr(rockscan.library, "EXACT_LIMIT", 100)  # 200 shapes count as large
+    save_library(large_lib, tmp_path / "large.npz")
+    loaded = load_library(tmp_path / "large.npz")
+    assert "sensor_metric" in loaded.__dict__  # read, not made on first use
+    stored, made = loaded.sensor_metric, large_lib.sensor_metric
+    for name in ("weights", "spectra", "norm_sq"):
+        np.testing.assert_array_equal(getattr(stored, name), getattr(made, name))
+    assert (stored.noise_band, stored.noise_gain, stored.noise_floor, stored.tolerance) == (
+        made.noise_band,
+        made.noise_gain,
+        made.noise_floor,
+        made.tolerance,
+    )
+    radii = _queries(large_lib, np.random.default_rng(8), 1)[0]
+    assert match_radii(radii, loaded).sensor_distance == match_radii(radii, large_lib).sensor_distance
+    # A file whose stored metric does not fit its shapes is refused in one line.
+    with np.load(tmp_path / "large.npz") as archive:
+        arrays = {k: archive[k] for k in archive.files}
+    arrays["sensor_spectra"] = arrays["sensor_spectra"][:-1]
+    np.savez(tmp_path / "bad.npz", **arrays)
+    with pytest.raises(LibraryError, match="inconsistent"):
+        load_library(tmp_path / "bad.npz")
