@@ -297,6 +297,8 @@ def load_library(path: str | os.PathLike[str]) -> Library:
                 if missing:
                     raise LibraryError(f"{path}: not a rockscan library (missing {', '.join(missing)})")
                 raw = archive["metadata"]
+                meta = _library_metadata(raw, path)
+                archive.max_bytes = _budget(meta)
                 arrays = {k: archive[k] for k in _ARRAYS}
                 arrays.update({k: archive[k] for k in _CUTOFF_ARRAYS if k in archive.files})
                 arrays.update({k: archive[k] for k in _SENSOR_ARRAYS if k in archive.files})
@@ -306,7 +308,6 @@ def load_library(path: str | os.PathLike[str]) -> Library:
         raise LibraryError(f"{path}: library file is truncated or corrupt ({_first_line(exc)})") from None
     except (ValueError, OSError, AttributeError, KeyError) as exc:
         raise LibraryError(f"{path}: not a rockscan library file ({_first_line(exc)})") from None
-    meta = _library_metadata(raw, path)
     version = meta.get("version")
     if not isinstance(version, int) or version < 1:
         raise LibraryError(f"{path}: library metadata has no valid format version")
@@ -358,6 +359,22 @@ def load_library(path: str | os.PathLike[str]) -> Library:
             library, calibration=dataclasses.replace(calibration, note="calibrated when loaded")
         )
     return library
+
+
+def _budget(meta: dict[str, object]) -> int:
+    """Bytes the arrays of a library file may take: ``MAX_ARCHIVE_BYTES``, and for a
+    library of more than ``EXACT_LIMIT`` shapes what its per-shape arrays can take
+    besides (about 8 KiB a shape at 360 rays)."""
+    from rockscan import _npzsafe
+    from rockscan.library import EXACT_LIMIT
+
+    names, face = meta.get("names"), meta.get("face")
+    n = len(names) if isinstance(names, list) else 0
+    rays = face.get("n_angles") if isinstance(face, dict) else None
+    rays = rays if isinstance(rays, int) and 0 < rays <= 1 << 16 else 360
+    # Radii, sensor spectra (pairs of floats) and up to 256 coordinates, plus the per-shape scalars.
+    per_shape = 8 * (rays + 2 * (rays // 2 + 1) + 256 + 8)
+    return _npzsafe.MAX_ARCHIVE_BYTES + (n * per_shape if n > EXACT_LIMIT else 0)
 
 
 def _sensor_arrays(library: Library, metadata: dict[str, object]) -> dict[str, NDArray]:
