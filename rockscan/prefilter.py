@@ -69,6 +69,8 @@ DEFAULT_FIRST = 32
 DEFAULT_REFERENCE = 64
 #: Shapes whose bounds are computed at once (bounded memory for large libraries).
 _BLOCK = 16384
+#: Shapes of the sensor pass scanned exactly at a time, by increasing bound.
+_SENSOR_BATCH = 64
 #: Arcs of consecutive rotations of the coarse bound (see Prefilter.coarse_bounds).
 _ARCS = 24
 
@@ -422,9 +424,10 @@ class SensorPrefilter:
 
     and the same per group of harmonics of their norms (``features_of``).
     The bound of every shape is one short product (``n_lead`` harmonics, then
-    groups of ``group``); the ``n_first`` smallest are scanned exactly, then
-    every shape whose bound is below the best distance found. No other shape
-    can be nearer: the nearest shape is the exhaustive pass's.
+    groups of ``group``); the ``n_first`` smallest are scanned exactly, then,
+    by increasing bound and ``_SENSOR_BATCH`` at a time, every shape whose
+    bound is below the best distance found so far. No other shape can be
+    nearer: the nearest shape is the exhaustive pass's.
 
     Build one with :meth:`from_metric`.
 
@@ -523,11 +526,24 @@ class SensorPrefilter:
         k = min(self.n_first, lb.size)
         first = np.argpartition(lb, k - 1)[:k] if k < lb.size else np.arange(lb.size)
         first_sq = _sensor_min_sq(metric, spectrum, first)
-        below = lb <= float(first_sq.min())
+        best = float(first_sq.min())
+        below = lb <= best
         below[first] = False
         rest = np.flatnonzero(below)
-        index = np.concatenate([first, rest])
-        dist_sq = np.concatenate([first_sq, _sensor_min_sq(metric, spectrum, rest)])
+        rest = rest[np.argsort(lb[rest], kind="stable")]
+        # By increasing bound, a batch at a time: each batch lowers the distance to
+        # prune with, and a shape whose bound exceeds it is never scanned.
+        done, found = [first], [first_sq]
+        for start in range(0, rest.size, _SENSOR_BATCH):
+            batch = rest[start : start + _SENSOR_BATCH]
+            batch = batch[lb[batch] <= best]
+            if batch.size == 0:
+                break
+            batch_sq = _sensor_min_sq(metric, spectrum, batch)
+            best = min(best, float(batch_sq.min()))
+            done.append(batch)
+            found.append(batch_sq)
+        index, dist_sq = np.concatenate(done), np.concatenate(found)
         order = np.argsort(index)
         index, dist_sq = index[order], dist_sq[order]
         lb[index] = dist_sq
