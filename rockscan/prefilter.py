@@ -36,6 +36,16 @@ random sample of ``n_reference`` shapes is scanned exactly; each shape left
 out gets the least-squares line of exact distance against ``sqrt(lb_k)`` over
 the sample, at its own bound, and never less than the nearest distance.
 
+Two refinements keep the bound's own cost low. The rotations are first cut
+into ``_ARCS`` arcs: over an arc the sample's vectors lie in a ball of centre
+``c`` and radius ``r``, so ``max(||c - S_k|| - r, 0)**2`` bounds every rotation
+of it (:meth:`Prefilter.coarse_bounds`); the full bound is computed only for
+the shapes that one leaves. The sensor distance (rockscan.calibrate), which
+ranks noisy samples, has its own bound (:class:`SensorPrefilter`): the
+magnitudes of the log radii's harmonics, which turning leaves alone. When it
+ranks, the eigenspace distances only feed MScore and are scanned for the
+sensor's nearest shapes and the reference sample alone.
+
 Libraries of at most ``EXACT_SCAN_LIMIT`` shapes are scanned whole.
 """
 
