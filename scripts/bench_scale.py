@@ -154,30 +154,68 @@ def load() -> str:
 
 
 def measure_agreement(library: Library, n_queries: int, seed: int) -> dict:
+    """Pruned against exhaustive, default settings (``metric="auto"``): each query is
+    ranked by the same metric in both (the choice depends on the sample alone)."""
+    from rockscan.core.match import _clean_enough
+
     queries = noisy_queries(library, n_queries, seed)[0]
     whole = exhaustive(library)
     pruned, full = [], []
-    t_pruned, t_full = [], []
+    c_pruned, c_full, t_pruned, t_full = [], [], [], []
     for q in queries:
-        start = time.perf_counter()
+        start, cpu = time.perf_counter(), time.process_time()
         pruned.append(match_radii(q, library))
         t_pruned.append(time.perf_counter() - start)
-        start = time.perf_counter()
+        c_pruned.append(time.process_time() - cpu)
+        start, cpu = time.perf_counter(), time.process_time()
         full.append(match_radii(q, whole))
         t_full.append(time.perf_counter() - start)
+        c_full.append(time.process_time() - cpu)
+    clean = np.array([_clean_enough(q, library) for q in queries])
     same = np.array([a.nearest == b.nearest for a, b in zip(pruned, full, strict=True)])
+    angle = np.array([a.angle_deg == b.angle_deg for a, b in zip(pruned, full, strict=True)])
+    sensor = np.abs([a.sensor_distance - b.sensor_distance for a, b in zip(pruned, full, strict=True)])
     mscore = np.abs([a.mscore - b.mscore for a, b in zip(pruned, full, strict=True)])
     flags = np.mean([a.interesting == b.interesting for a, b in zip(pruned, full, strict=True)])
     return {
         "queries": n_queries,
+        "ranked_by_sensor": int((~clean).sum()),
+        "ranked_by_eigenspace": int(clean.sum()),
         "agreement": float(same.mean()),
         "disagreements": int((~same).sum()),
+        "agreement_sensor_ranked": float(same[~clean].mean()) if (~clean).any() else None,
+        "agreement_eigenspace_ranked": float(same[clean].mean()) if clean.any() else None,
+        "same_angle": float(angle.mean()),
+        "sensor_distance_error_max": float(sensor.max()),
         "mscore_error_median": float(np.median(mscore)),
         "mscore_error_p99": float(np.quantile(mscore, 0.99)),
         "interesting_agreement": float(flags),
         "pruned_ms": 1e3 * float(np.median(t_pruned)),
+        "pruned_cpu_ms": 1e3 * float(np.median(c_pruned)),
+        "pruned_cpu_ms_p90": 1e3 * float(np.quantile(c_pruned, 0.9)),
+        "pruned_cpu_ms_sensor_ranked": 1e3 * float(np.median(np.asarray(c_pruned)[~clean])),
+        "pruned_cpu_ms_eigenspace_ranked": 1e3 * float(np.median(np.asarray(c_pruned)[clean]))
+        if clean.any()
+        else None,
         "exhaustive_ms": 1e3 * float(np.median(t_full)),
+        "exhaustive_cpu_ms": 1e3 * float(np.median(c_full)),
+        "load": load(),
     }
+
+
+def measure_load(path: Path, n_queries: int, seed: int) -> dict:
+    """Reading a library file, then what its first match sets up (CPU and wall)."""
+    from rockscan.io import load_library
+
+    out = {}
+    start, cpu = time.perf_counter(), time.process_time()
+    library = load_library(path)
+    out["load_s"], out["load_cpu_s"] = time.perf_counter() - start, time.process_time() - cpu
+    query = noisy_queries(library, 1, seed)[0][0]
+    start, cpu = time.perf_counter(), time.process_time()
+    match_radii(query, library)
+    out["first_match_s"], out["first_match_cpu_s"] = time.perf_counter() - start, time.process_time() - cpu
+    return out
 
 
 def measure_truncation(n: int, n_queries: int, seed: int) -> dict:
@@ -202,18 +240,23 @@ def measure_truncation(n: int, n_queries: int, seed: int) -> dict:
     }
 
 
-def measure_observed(library: Library, adds: int, seed: int) -> float:
-    """Median CPU ms of one ``with_shape`` after the first (which sets up the growing arrays)."""
+def measure_observed(library: Library, adds: int, seed: int) -> tuple[float, float]:
+    """Median CPU ms of one ``with_shape`` after the first (which sets up the growing
+    arrays), and of one ``assess`` of the grown library."""
     rng = np.random.default_rng(seed)
     observed = ObservedShapes.from_library(library, NoveltyConfig(threshold=0.1))
     observed = observed.with_shape("seen-first", library.radii[0] * (1 + 0.05 * rng.standard_normal(360)))
-    times = []
+    observed.assess(library.radii[1])
+    times, assess = [], []
     for i in range(adds):
         radii = library.radii[rng.integers(len(library))] * (1 + 0.05 * rng.standard_normal(360))
         start = time.process_time()
         observed = observed.with_shape(f"seen-{i}", radii)
         times.append(time.process_time() - start)
-    return 1e3 * float(np.median(times))
+        start = time.process_time()
+        observed.assess(radii)
+        assess.append(time.process_time() - start)
+    return 1e3 * float(np.median(times)), 1e3 * float(np.median(assess))
 
 
 def measure_cli(n: int, seed: int, folder: Path) -> dict:
@@ -221,32 +264,44 @@ def measure_cli(n: int, seed: int, folder: Path) -> dict:
     write_spec(specs(draw_shapes(n, seed)), spec)
     lib_path = folder / "lib.npz"
     env = dict(os.environ)
-    start = time.perf_counter()
+    start, children = time.perf_counter(), _children_cpu()
     subprocess.run(
         ["rockscan", "library", "build", str(spec), "-o", str(lib_path)],
         check=True,
         capture_output=True,
         env=env,
     )
-    build_s = time.perf_counter() - start
+    build_s, build_cpu = time.perf_counter() - start, _children_cpu() - children
     photo = ROOT / "data" / "examples" / "0001-six-pointed-star.jpg"
-    start = time.perf_counter()
+    start, children = time.perf_counter(), _children_cpu()
     subprocess.run(
         ["rockscan", "classify", "--json", "--library", str(lib_path), str(photo)],
         check=True,
         capture_output=True,
         env=env,
     )
-    classify_s = time.perf_counter() - start
-    start = time.perf_counter()
+    classify_s, classify_cpu = time.perf_counter() - start, _children_cpu() - children
+    start, children = time.perf_counter(), _children_cpu()
     subprocess.run(["rockscan", "classify", "--json", str(photo)], check=True, capture_output=True, env=env)
-    default_s = time.perf_counter() - start
+    default_s, default_cpu = time.perf_counter() - start, _children_cpu() - children
     return {
         "shapes": n,
         "build_s": build_s,
+        "build_cpu_s": build_cpu,
         "classify_s": classify_s,
+        "classify_cpu_s": classify_cpu,
         "classify_default_library_s": default_s,
+        "classify_default_library_cpu_s": default_cpu,
+        "file_mib": lib_path.stat().st_size / 2**20,
+        **measure_load(lib_path, 1, 5),
+        "load": load(),
     }
+
+
+def _children_cpu() -> float:
+    """CPU seconds of every finished child process so far (user + system)."""
+    usage = resource.getrusage(resource.RUSAGE_CHILDREN)
+    return usage.ru_utime + usage.ru_stime
 
 
 def measure_cluster(photos: int, workers: tuple[int, ...], folder: Path) -> list[dict]:
@@ -374,10 +429,18 @@ def main(argv: list[str] | None = None) -> int:
             row = measure_agreement(load_library(libraries[10000]), args.queries, args.seed + 1)
             results["agreement"] = row
             print(
-                f"agreement, 10,000 shapes, {row['queries']} queries: {100 * row['agreement']:.2f}% "
-                f"({row['disagreements']} differ); MScore error median {row['mscore_error_median']:.4f}, "
-                f"p99 {row['mscore_error_p99']:.4f}; "
-                f"interesting flag {100 * row['interesting_agreement']:.2f}%",
+                f"agreement, 10,000 shapes, {row['queries']} queries ({row['ranked_by_sensor']} ranked "
+                f"by the sensor distance, {row['ranked_by_eigenspace']} by the eigenspace one): "
+                f"{100 * row['agreement']:.2f}% ({row['disagreements']} differ), same angle "
+                f"{100 * row['same_angle']:.2f}%, sensor distance error max "
+                f"{row['sensor_distance_error_max']:.2g}; "
+                f"MScore error median {row['mscore_error_median']:.4f}, p99 {row['mscore_error_p99']:.4f}; "
+                f"interesting flag {100 * row['interesting_agreement']:.2f}%; match CPU median "
+                f"{row['pruned_cpu_ms']:.1f} ms (p90 {row['pruned_cpu_ms_p90']:.1f}; sensor-ranked "
+                f"{row['pruned_cpu_ms_sensor_ranked']:.1f}, eigenspace-ranked "
+                f"{row['pruned_cpu_ms_eigenspace_ranked'] or 0:.1f}), wall {row['pruned_ms']:.1f} ms; "
+                f"exhaustive CPU {row['exhaustive_cpu_ms']:.1f} ms, wall {row['exhaustive_ms']:.1f} ms; "
+                f"load {row['load']}",
                 flush=True,
             )
         if "truncation" not in args.skip:
@@ -396,24 +459,44 @@ def main(argv: list[str] | None = None) -> int:
         if "observed" not in args.skip and libraries:
             sizes = sorted(libraries)
             small, large = load_library(libraries[sizes[0]]), load_library(libraries[sizes[-1]])
-            t_small, t_large = measure_observed(small, 30, 1), measure_observed(large, 30, 2)
-            results["observed"] = {
-                "small": sizes[0],
-                "large": sizes[-1],
-                "small_ms": t_small,
-                "large_ms": t_large,
+            # The same small library built the large way (a streamed basis of 128 eigenfaces
+            # that grows by Gram-Schmidt, as the large one's does).
+            streamed = Library.from_shapes(specs(draw_shapes(sizes[0], args.seed)), exact_limit=0)
+            rows = {
+                f"{sizes[0]} exact basis": (small, measure_observed(small, 30, 1)),
+                f"{sizes[0]} streamed basis": (streamed, measure_observed(streamed, 30, 1)),
+                f"{sizes[-1]} streamed basis": (large, measure_observed(large, 30, 2)),
             }
+            results["observed"] = {
+                name: {"shapes": len(lib), "components": lib.basis.n_components, "add_ms": a, "assess_ms": b}
+                for name, (lib, (a, b)) in rows.items()
+            }
+            for name, row in results["observed"].items():
+                print(
+                    f"observed, {name} ({row['components']} eigenfaces): add {row['add_ms']:.2f} ms, "
+                    f"assess {row['assess_ms']:.2f} ms (CPU)",
+                    flush=True,
+                )
+            keys = list(results["observed"])
             print(
-                f"observed add: {t_small:.2f} ms at {sizes[0]}, {t_large:.2f} ms at {sizes[-1]} "
-                f"(ratio {t_large / t_small:.2f})",
+                f"observed add ratio {sizes[-1]} / {sizes[0]}: "
+                f"{results['observed'][keys[2]]['add_ms'] / results['observed'][keys[0]]['add_ms']:.2f} "
+                f"against the exact basis, "
+                f"{results['observed'][keys[2]]['add_ms'] / results['observed'][keys[1]]['add_ms']:.2f} "
+                f"against the streamed one; load {load()}",
                 flush=True,
             )
         if "cli" not in args.skip:
             row = measure_cli(10000, args.seed + 3, folder)
             results["cli"] = row
             print(
-                f"CLI, 10,000 shapes: library build {row['build_s']:.1f} s; classify --library "
-                f"{row['classify_s']:.2f} s (default library {row['classify_default_library_s']:.2f} s)",
+                f"CLI, 10,000 shapes: library build {row['build_s']:.1f} s (CPU {row['build_cpu_s']:.1f} s); "
+                f"classify --library {row['classify_s']:.2f} s (CPU {row['classify_cpu_s']:.2f} s), default "
+                f"library {row['classify_default_library_s']:.2f} s (CPU "
+                f"{row['classify_default_library_cpu_s']:.2f} s); file {row['file_mib']:.0f} MiB, load "
+                f"{row['load_s']:.2f} s (CPU {row['load_cpu_s']:.2f} s), first match "
+                f"{row['first_match_s']:.2f} s (CPU {row['first_match_cpu_s']:.2f} s); "
+                f"load average {row['load']}",
                 flush=True,
             )
         if "cluster" not in args.skip:

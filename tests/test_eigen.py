@@ -191,3 +191,12 @@ def test_a_library_built_the_large_way_matches_its_own_shapes(default_specs):
         m = match_radii(np.roll(exact.radii[k], 40), large_way)
         assert m.nearest == shapes[k].name
         assert m.distance == pytest.approx(0.0, abs=1e-6)
+
+
+def test_a_truncated_fit_makes_the_same_leading_eigenfaces(rng):
+    faces = rng.normal(size=(30, 40))
+    full = EigenBasis.from_faces(faces)
+    few = EigenBasis.from_faces(faces, n_components=5)
+    np.testing.assert_allclose(few.eigenvalues, full.eigenvalues[:5], rtol=1e-12)
+    np.testing.assert_allclose(few.components, full.components[:5], atol=1e-12)
+    np.testing.assert_allclose(few.weights, full.weights[:, :5], atol=1e-12)

@@ -281,3 +281,20 @@ def test_saved_grown_library_loads(small_lib, tmp_path):
     sample = observed.library.radii[-1]
     assert again.assess(sample).score == pytest.approx(observed.assess(sample).score, abs=1e-6)
     assert again.n_observed == 4
+
+
+def test_a_grown_library_carries_its_sensor_metric_and_cutoffs(small_lib):
+    observed = _grown(small_lib, 5, seed=7)
+    grown = observed.library
+    seed_metric = small_lib.sensor_metric
+    metric = grown.sensor_metric
+    # The seed's weights; each new shape's spectrum as the seed's metric measures it.
+    np.testing.assert_array_equal(metric.weights, seed_metric.weights)
+    assert metric.spectra.shape[0] == len(grown)
+    np.testing.assert_allclose(metric.spectra[-1], seed_metric.sample_spectrum(grown.radii[-1]), atol=1e-12)
+    own = metric.squared_distances(grown.radii[-1])
+    assert own[:, -1].min() == pytest.approx(0.0, abs=1e-9)
+    # Cutoffs without a calibration of the grown library: the seed's, then their median.
+    assert grown.calibration is None
+    np.testing.assert_array_equal(grown.cutoffs[: len(small_lib)], small_lib.cutoffs)
+    np.testing.assert_array_equal(grown.cutoffs[len(small_lib) :], np.median(small_lib.cutoffs))

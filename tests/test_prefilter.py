@@ -8,7 +8,7 @@ import pytest
 from rockscan.core.information import FaceConfig, sample_term
 from rockscan.core.library import Library
 from rockscan.core.match import MatchConfig, match_radii, rotation_scores
-from rockscan.core.prefilter import Prefilter, features_of
+from rockscan.core.prefilter import Prefilter, SensorPrefilter, features_of
 
 #: Coarse faces (72 rays of 20 sections) keep a library of hundreds of shapes fast.
 SMALL_FACE = FaceConfig(n_angles=72, resolution=0.05)
@@ -30,6 +30,7 @@ def large_lib() -> Library:
     n = 200
     library = Library.from_radii([f"s{i}" for i in range(n)], _random_radii(rng, n), face_config=SMALL_FACE)
     library.set_prefilter(Prefilter.from_library(library, min_shapes=0, n_first=8, n_reference=16))
+    library.set_sensor_prefilter(SensorPrefilter.from_metric(library.sensor_metric, min_shapes=0, n_first=8))
     return library
 
 
@@ -101,3 +102,76 @@ def test_prefilter_grows_by_one_shape(large_lib, rng):
         grown.features[-1], features_of(omega[None], prefilter.n_lead, prefilter.group)[0]
     )
     assert isinstance(grown, Prefilter)
+
+
+def test_the_coarse_bound_is_below_the_fine_one_and_the_truth(large_lib):
+    prefilter = large_lib.prefilter
+    templates = large_lib.scan_templates
+    for radii in _queries(large_lib, np.random.default_rng(4), 3):
+        q = sample_term(radii, SMALL_FACE)
+        spectrum, omega = templates.coordinates(q)
+        extra = np.maximum(templates.centered_norm_sq(q, spectrum) - np.einsum("ac,ac->a", omega, omega), 0.0)
+        for metric, extra_sq in (("eigenspace", None), ("face", extra)):
+            exact = rotation_scores(radii, large_lib, metric=metric).min(axis=0) ** 2
+            coarse = prefilter.coarse_bounds(omega, extra_sq)
+            assert np.all(coarse <= exact + 1e-9)
+            assert np.all(coarse <= prefilter.bounds(omega, extra_sq) + 1e-6)
+
+
+def test_the_sensor_bound_is_below_every_shapes_sensor_distance(large_lib):
+    metric = large_lib.sensor_metric
+    sensor_filter = large_lib.sensor_prefilter
+    for radii in _queries(large_lib, np.random.default_rng(5), 4):
+        exact = metric.squared_distances(radii).min(axis=0)
+        bound = sensor_filter.bounds(metric.sample_spectrum(radii), metric.n_angles)
+        assert np.all(bound <= exact + 1e-9)
+        assert np.mean(bound > exact.min()) > 0.5  # and it prunes
+        chosen = sensor_filter.select(radii, metric)
+        assert chosen.nearest == int(np.argmin(exact))
+        np.testing.assert_allclose(chosen.dist_sq, exact[chosen.index], rtol=1e-9, atol=1e-12)
+        assert np.all(chosen.bound[np.setdiff1d(np.arange(len(large_lib)), chosen.index)] > exact.min())
+
+
+@pytest.mark.parametrize("metric", ["auto", "sensor"])
+def test_pruned_sensor_ranking_finds_the_exhaustive_nearest(large_lib, metric):
+    whole = large_lib.scanned_whole()
+    assert whole.sensor_prefilter is None
+    config = MatchConfig(metric=metric)
+    for radii in _queries(large_lib, np.random.default_rng(6), 8):
+        pruned, full = match_radii(radii, large_lib, config), match_radii(radii, whole, config)
+        assert pruned.nearest == full.nearest
+        assert pruned.sensor_distance == pytest.approx(full.sensor_distance, rel=1e-9, abs=1e-12)
+        assert pruned.interesting == full.interesting
+        assert pruned.angle_deg == pytest.approx(full.angle_deg, abs=1e-6)
+        # Shapes left out carry a lower bound of their sensor distance, above the nearest one.
+        assert np.all(pruned.sensor_distances <= full.sensor_distances + 1e-9)
+        assert pruned.mscore == pytest.approx(full.mscore, abs=0.05)
+
+
+def test_a_large_librarys_file_keeps_its_sensor_metric(large_lib, tmp_path, monkeypatch):
+    import rockscan.core.library
+    from rockscan.core.errors import LibraryError
+    from rockscan.io import load_library, save_library
+
+    monkeypatch.setattr(rockscan.core.library, "EXACT_LIMIT", 100)  # 200 shapes count as large
+    save_library(large_lib, tmp_path / "large.npz")
+    loaded = load_library(tmp_path / "large.npz")
+    assert "sensor_metric" in loaded.__dict__  # read, not made on first use
+    stored, made = loaded.sensor_metric, large_lib.sensor_metric
+    for name in ("weights", "spectra", "norm_sq"):
+        np.testing.assert_array_equal(getattr(stored, name), getattr(made, name))
+    assert (stored.noise_band, stored.noise_gain, stored.noise_floor, stored.tolerance) == (
+        made.noise_band,
+        made.noise_gain,
+        made.noise_floor,
+        made.tolerance,
+    )
+    radii = _queries(large_lib, np.random.default_rng(8), 1)[0]
+    assert match_radii(radii, loaded).sensor_distance == match_radii(radii, large_lib).sensor_distance
+    # A file whose stored metric does not fit its shapes is refused in one line.
+    with np.load(tmp_path / "large.npz") as archive:
+        arrays = {k: archive[k] for k in archive.files}
+    arrays["sensor_spectra"] = arrays["sensor_spectra"][:-1]
+    np.savez(tmp_path / "bad.npz", **arrays)
+    with pytest.raises(LibraryError, match="inconsistent"):
+        load_library(tmp_path / "bad.npz")

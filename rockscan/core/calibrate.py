@@ -581,6 +581,7 @@ def calibrate(
     max_shapes: int = 100,
     seed: int = 0,
     keep_samples: bool = False,
+    metric: SensorMetric | None = None,
 ) -> Calibration:
     """Per-shape cutoffs of a library from its radii (see the module docstring).
 
@@ -609,6 +610,8 @@ def calibrate(
         Seed of every simulated draw: the same library gets the same cutoffs.
     keep_samples : bool
         Keep the simulated distances (for figures).
+    metric : SensorMetric, optional
+        ``SensorMetric.from_radii(radii, tolerance)`` when the caller has it already.
 
     Returns
     -------
@@ -625,7 +628,8 @@ def calibrate(
         jitter_px=base.jitter_px,
         blur_px=base.blur_px,
     )
-    metric = SensorMetric.from_radii(radii, model.tolerance)
+    if metric is None or metric.tolerance != model.tolerance or metric.spectra.shape[0] != radii.shape[0]:
+        metric = SensorMetric.from_radii(radii, model.tolerance)
     rng = np.random.default_rng([seed, 11])
     n_shapes = radii.shape[0]
     chosen = np.arange(n_shapes)

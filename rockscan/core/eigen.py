@@ -118,6 +118,8 @@ class EigenBasis:
             order = np.argsort(values)[::-1]
             values, vectors = values[order], vectors[:, order]
             keep = values > rtol * max(values[0], np.finfo(float).tiny)
+            if n_components is not None:  # only the eigenfaces kept are made
+                keep[int(max(n_components, 1)) :] = False
             values, vectors = values[keep], vectors[:, keep]
             components = (vectors.T @ centered) / np.sqrt(values)[:, None]
         else:
@@ -134,6 +136,7 @@ class EigenBasis:
         return cls(mean=mean, components=components, eigenvalues=values, weights=weights)
 
     @classmethod
+    @one_blas_thread
     def from_face_stream(
         cls, fit_faces: ArrayLike, chunks: Iterable[ArrayLike], *, n_components: int = STREAM_COMPONENTS
     ) -> EigenBasis:
@@ -171,13 +174,16 @@ class EigenBasis:
         start_mean, directions = fit.mean, fit.components
         n_pixels = start_mean.size
         face_sum = np.zeros(n_pixels)
+        # (face - mean) . u as face . u - mean . u: no centred copy of each chunk.
+        offsets = directions @ start_mean
         coords = []
         for chunk in chunks:
             flat = np.asarray(chunk, dtype=np.float64).reshape(-1, n_pixels)
-            if not np.all(np.isfinite(flat)):
-                raise ParameterError("faces must be finite")
             face_sum += flat.sum(axis=0)
-            coords.append((flat - start_mean) @ directions.T)
+            coords.append(flat @ directions.T - offsets)
+        # A non-finite value anywhere makes the sum non-finite: one test for all faces.
+        if not np.all(np.isfinite(face_sum)):
+            raise ParameterError("faces must be finite")
         omega = np.concatenate(coords) if coords else np.zeros((0, directions.shape[0]))
         if omega.shape[0] < 2:
             raise ParameterError("an eigenface basis needs at least two faces")

@@ -21,7 +21,9 @@ pruned by a lower bound (rockscan/core/prefilter.py).
 from __future__ import annotations
 
 import re
+from collections import deque
 from collections.abc import Collection, Sequence
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
 from functools import cached_property
 from typing import TYPE_CHECKING
@@ -46,7 +48,7 @@ from rockscan.core.superformula import SuperformulaParams, degenerate_rays, log_
 
 if TYPE_CHECKING:
     from rockscan.core.match import ScanTemplates
-    from rockscan.core.prefilter import Prefilter
+    from rockscan.core.prefilter import Prefilter, SensorPrefilter
 
 __all__ = [
     "EXACT_LIMIT",
@@ -69,6 +71,8 @@ EXACT_LIMIT = 1000
 _CHUNK = 256
 #: Step of the radius table of section probabilities (map units); see _FaceTable.
 _TABLE_STEP = 5e-4
+#: Threads that make a large build's faces (the machine's two cores).
+_BUILD_THREADS = 2
 
 
 def sanitize_name(text: str, *, fallback: str = "shape") -> str:
@@ -287,11 +291,14 @@ class Library:
                 basis = EigenBasis.from_faces(face_array, n_components=n_components)
             else:
                 basis = _streamed_basis(radii, config, face_array, n_components)
+            metric = None
             if calibration is None:
-                calibration = calibrate(radii, examples=examples, tolerance=tolerance)
+                # The metric calibrate needs is the library's own: made once, kept.
+                metric = SensorMetric.from_radii(radii, tolerance)
+                calibration = calibrate(radii, examples=examples, tolerance=tolerance, metric=metric)
         except ParameterError as exc:
             raise LibraryError(str(exc)) from None
-        return cls(
+        library = cls(
             names=names,
             radii=radii,
             params=tuple(params) if params is not None else (None,) * len(names),
@@ -301,6 +308,9 @@ class Library:
             basis=basis,
             calibration=calibration,
         )
+        if metric is not None:
+            object.__setattr__(library, "sensor_metric", metric)
+        return library
 
     @classmethod
     def from_shapes(
@@ -324,17 +334,26 @@ class Library:
         radii = np.empty((len(params), config.n_angles))
         # A small library's radii one shape at a time, as they always were (to the
         # last bit); a large one's in vectorised chunks (to rounding, 1e-15).
-        step = 1 if len(params) <= EXACT_LIMIT else _CHUNK
-        for start in range(0, len(params), step):
-            chunk = params[start : start + step]
-            try:
-                if step == 1:
-                    radii[start] = shape_radii(chunk[0], config.n_angles)
-                else:
-                    radii[start : start + len(chunk)] = shapes_radii(chunk, config.n_angles)
-            except ParameterError as exc:
-                bad = next(i for i, p in enumerate(chunk) if not _closes(p, config.n_angles))
-                raise LibraryError(f"shape {names[start + bad]!r}: {exc}") from None
+        if len(params) <= EXACT_LIMIT:
+            for i, p in enumerate(params):
+                try:
+                    radii[i] = shape_radii(p, config.n_angles)
+                except ParameterError as exc:
+                    raise LibraryError(f"shape {names[i]!r}: {exc}") from None
+        else:
+            starts = range(0, len(params), _CHUNK)
+            chunks = _in_threads(
+                lambda start: closed_shapes_radii(params[start : start + _CHUNK], config.n_angles),
+                starts,
+                _BUILD_THREADS,
+            )
+            for start, (values, closed) in zip(starts, chunks, strict=True):
+                radii[start : start + values.shape[0]] = values
+                for bad in start + np.flatnonzero(~closed):  # the one-shape check says why
+                    try:
+                        radii[bad] = shape_radii(params[bad], config.n_angles)
+                    except ParameterError as exc:
+                        raise LibraryError(f"shape {names[bad]!r}: {exc}") from None
         return cls.from_radii(
             names,
             radii,
@@ -404,6 +423,14 @@ class Library:
 
         return Prefilter.from_library(self)
 
+    @cached_property
+    def sensor_prefilter(self) -> SensorPrefilter | None:
+        """What prunes the sensor pass of a large library; None for a small one
+        (see prefilter.py)."""
+        from rockscan.core.prefilter import SensorPrefilter
+
+        return SensorPrefilter.from_metric(self.sensor_metric)
+
     def set_prefilter(self, prefilter: Prefilter | None) -> None:
         """Attach a prefilter computed elsewhere (at build, or read from a file), or
         None to scan every shape. Only the shortlist of later matches changes."""
@@ -411,6 +438,12 @@ class Library:
             raise LibraryError("the prefilter does not fit the library's shapes")
         # A cached property is a plain attribute of the instance once computed.
         object.__setattr__(self, "prefilter", prefilter)
+
+    def set_sensor_prefilter(self, sensor_prefilter: SensorPrefilter | None) -> None:
+        """Attach the sensor pass's prefilter (or None: every shape's sensor distance is computed)."""
+        if sensor_prefilter is not None and sensor_prefilter.n_shapes != len(self):
+            raise LibraryError("the sensor prefilter does not fit the library's shapes")
+        object.__setattr__(self, "sensor_prefilter", sensor_prefilter)
 
     def scanned_whole(self) -> Library:
         """The same library without a prefilter: every match scans every shape (the
@@ -420,6 +453,9 @@ class Library:
             if cached in self.__dict__:
                 object.__setattr__(copy, cached, self.__dict__[cached])
         copy.set_prefilter(None)
+        copy.set_sensor_prefilter(None)
+        if "sensor_metric" in self.__dict__:
+            object.__setattr__(copy, "sensor_metric", self.__dict__["sensor_metric"])
         return copy
 
     @classmethod
@@ -487,14 +523,6 @@ def closed_shapes_radii(
     return centered / centered.mean(axis=1, keepdims=True), closed
 
 
-def _closes(params: SuperformulaParams, n_angles: int) -> bool:
-    try:
-        shape_radii(params, n_angles)
-    except ParameterError:
-        return False
-    return True
-
-
 def _recentered(radii: NDArray[np.float64]) -> NDArray[np.float64]:
     """:func:`rockscan.core.polar.recenter_radii` of many outlines, (n, n_angles) -> (n, n_angles).
 
@@ -556,9 +584,9 @@ def symmetry_orders(radii: ArrayLike, *, tol: float = 1e-4, max_order: int = 36)
         return np.zeros(0, dtype=np.int64)
     energy = np.abs(np.fft.rfft(radii, axis=1)[:, 1:]) ** 2
     total = energy.sum(axis=1)
-    harmonic = np.arange(1, energy.shape[1] + 1)
     orders = np.arange(min(max_order, energy.shape[1]), 1, -1)
-    off = np.stack([energy[:, harmonic % k != 0].sum(axis=1) for k in orders], axis=1)
+    # The energy off the multiples of k: all of it less that on them (a strided view, no copy).
+    off = np.stack([total - energy[:, k - 1 :: k].sum(axis=1) for k in orders], axis=1)
     fits = off <= tol * total[:, None]
     out = np.where(fits.any(axis=1), orders[np.argmax(fits, axis=1)], 1)
     out[total <= (1e-9 * radii.mean(axis=1)) ** 2 * radii.shape[1] ** 2] = 0
@@ -587,27 +615,30 @@ class _FaceTable:
         # d/dr [Phi((e_{j+1} - r)/sigma) - Phi((e_j - r)/sigma)], in units of the step.
         slopes = (density[:, :-1] - density[:, 1:]) / config.sigma * _TABLE_STEP
         v0, v1, s0, s1 = values[:-1], values[1:], slopes[:-1], slopes[1:]
-        # Each cell's Hermite cubic as a polynomial in t, lowest power first.
-        self.coefficients = np.stack([v0, s0, 3 * (v1 - v0) - 2 * s0 - s1, 2 * (v0 - v1) + s0 + s1], axis=1)
+        # Each cell's Hermite cubic as a polynomial in t, lowest power first:
+        # (4, n_cells, n_sections), one contiguous table per power.
+        self.coefficients = np.stack([v0, s0, 3 * (v1 - v0) - 2 * s0 - s1, 2 * (v0 - v1) + s0 + s1])
         self.weights = reference_information(config)
 
     def faces(self, radii: NDArray[np.float64]) -> NDArray[np.float64]:
         """(n, n_angles) radii -> (n, n_angles, n_sections) faces."""
         u = np.minimum(normalize_radii(radii), self.r_max) / _TABLE_STEP
-        cell = np.minimum(np.floor(u).astype(np.int64), self.coefficients.shape[0] - 1)
-        t = (u - cell)[..., None]
-        out = np.empty((*radii.shape, self.coefficients.shape[2]))
-        for start in range(0, radii.shape[0], 16):  # blocks that stay in cache
-            block = slice(start, start + 16)
-            c = self.coefficients[cell[block]]
-            tb = t[block]
-            q = c[..., 3, :] * tb
-            q += c[..., 2, :]
+        cell = np.minimum(np.floor(u).astype(np.int64), self.coefficients.shape[1] - 1)
+        t = u - cell
+        c0, c1, c2, c3 = self.coefficients
+        out = np.empty((*radii.shape, c0.shape[1]))
+        for start in range(0, radii.shape[0], 8):  # blocks that stay in cache
+            block = slice(start, start + 8)
+            rows, tb = cell[block].ravel(), t[block].reshape(-1, 1)
+            # Horner's rule, one row of the table per ray and power at a time.
+            q = np.take(c3, rows, axis=0)
             q *= tb
-            q += c[..., 1, :]
+            q += np.take(c2, rows, axis=0)
             q *= tb
-            q += c[..., 0, :]
-            np.multiply(q, self.weights, out=out[block])
+            q += np.take(c1, rows, axis=0)
+            q *= tb
+            q += np.take(c0, rows, axis=0)
+            np.multiply(q.reshape(-1, *self.weights.shape), self.weights, out=out[block])
         return out
 
 
@@ -636,5 +667,27 @@ def _streamed_basis(
     n_keep = STREAM_COMPONENTS if n_components is None else int(n_components)
     rng = np.random.default_rng(seed)
     sample = np.sort(rng.choice(n, size=min(n, max(STREAM_FIT_FACES, 2 * n_keep)), replace=False))
-    chunks = (faces_of(slice(start, start + _CHUNK)) for start in range(0, n, _CHUNK))
+    starts = range(0, n, _CHUNK)
+    if faces is None and _BUILD_THREADS > 1:
+        chunks = _in_threads(lambda start: faces_of(slice(start, start + _CHUNK)), starts, _BUILD_THREADS)
+    else:
+        chunks = (faces_of(slice(start, start + _CHUNK)) for start in starts)
     return EigenBasis.from_face_stream(faces_of(sample), chunks, n_components=n_keep)
+
+
+def _in_threads(function, items, workers: int):  # type: ignore[no-untyped-def]
+    """``function`` of each item, in order, computed ``workers`` at a time in threads.
+
+    NumPy's loops release the interpreter lock, so the faces of the next chunks
+    are made while the caller projects the last one; at most ``workers + 1``
+    results exist at once (memory stays one chunk per thread), and the results
+    come in order, so the sums over them are the same as in one thread.
+    """
+    with ThreadPoolExecutor(max_workers=workers) as pool:
+        pending: deque = deque()
+        for item in items:
+            pending.append(pool.submit(function, item))
+            if len(pending) > workers:
+                yield pending.popleft().result()
+        while pending:
+            yield pending.popleft().result()

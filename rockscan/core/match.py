@@ -473,26 +473,47 @@ def match_radii(radii: ArrayLike, library: Library, config: MatchConfig | None =
     metrics = tuple(dict.fromkeys((w_metric, config.angle_metric)))
     # The sample term is computed once: for the scan and for the nearest shape's face.
     q = sample_term(radii, face_config) if face_config.grid == "polar" else None
+    if config.metric == "auto" and _clean_enough(radii, library):
+        metric = "eigenspace"
     # A large library scans only the shapes a lower bound cannot rule out
     # (prefilter.py); None: every shape.
     prefilter = library.prefilter if config.scan else None
-    shortlist = None if prefilter is None else prefilter.select(q, library, w_metric)
+    sensor_filter = library.sensor_prefilter if config.scan else None
+    sensor_list = None
+    if sensor_filter is not None and metric == "sensor":
+        sensor_list = sensor_filter.select(radii, library.sensor_metric)
+    if prefilter is None:
+        shortlist = None
+    elif sensor_list is not None and config.mscore_cutoff is None:
+        # The sensor distance ranks: the eigenspace distances only feed MScore, which
+        # decides nothing here, so they are exact for the sensor's candidates alone.
+        shortlist = prefilter.around(q, library, sensor_list.nearest_few(), np.sqrt(sensor_list.bound))
+    else:
+        shortlist = prefilter.select(q, library, w_metric)
     dist = _scan(radii, library, metrics, scan=config.scan, q=q, shapes=shortlist)
-    # The sensor distance with the sample's own noise taken out (rockscan.core.calibrate):
-    # the ranking is the same, and the cutoffs were calibrated on it.
-    sensor_sq = library.sensor_metric.squared_distances(radii)
-    sensor_sq = sensor_sq.min(axis=0) if config.scan else sensor_sq[0]
-    sensor = library.sensor_metric.corrected(radii, sensor_sq)
-    noise = float(library.sensor_metric.noise_level(radii))
     chosen = dist[w_metric]
     best_shift = np.argmin(chosen, axis=0)
     w = chosen[best_shift, np.arange(chosen.shape[1])]
+    # The nearest by w among the shapes scanned: an estimate never wins.
+    nearest_w = int(np.argmin(w)) if shortlist is None else int(shortlist.index[int(np.argmin(w))])
     if shortlist is not None:  # every shape's w, estimated where not scanned
         w, best_shift = shortlist.widen(w, best_shift)
-    if config.metric == "auto" and _clean_enough(radii, library):
-        metric = "eigenspace"
-    # Ranked before the noise is taken out: distances below the noise would tie at 0.
-    k = int(np.argmin(sensor_sq if metric == "sensor" else w))
+    # The sensor distance with the sample's own noise taken out (rockscan.core.calibrate):
+    # the ranking is the same, and the cutoffs were calibrated on it.
+    if sensor_list is not None:
+        # Exact for every shape that could be nearest, a lower bound for the others.
+        sensor_sq = sensor_list.bound
+        k = sensor_list.nearest
+    elif sensor_filter is not None:
+        k = nearest_w
+        sensor_sq = sensor_filter.bounds_with(radii, library.sensor_metric, np.array([k]))
+    else:
+        sensor_sq = library.sensor_metric.squared_distances(radii)
+        sensor_sq = sensor_sq.min(axis=0) if config.scan else sensor_sq[0]
+        # Ranked before the noise is taken out: distances below the noise would tie at 0.
+        k = int(np.argmin(sensor_sq)) if metric == "sensor" else nearest_w
+    sensor = library.sensor_metric.corrected(radii, sensor_sq)
+    noise = float(library.sensor_metric.noise_level(radii))
     col = k  # the nearest shape's column of dist
     if shortlist is not None:
         hit = np.flatnonzero(shortlist.index == k)

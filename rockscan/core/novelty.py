@@ -43,6 +43,8 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from rockscan.core._threads import one_blas_thread
+from rockscan.core.calibrate import CALIBRATION_VERSION, Calibration
 from rockscan.core.choices import NOVELTY_METRICS
 from rockscan.core.eigen import EigenBasis
 from rockscan.core.errors import LibraryError, ParameterError
@@ -50,7 +52,13 @@ from rockscan.core.information import information_face, sample_term
 from rockscan.core.library import EXACT_LIMIT, Library, sanitize_name, unique_name
 from rockscan.core.match import MatchConfig, _template_spectra, match_radii, rotation_scores
 from rockscan.core.polar import symmetry_order
-from rockscan.core.prefilter import EXACT_SCAN_LIMIT, Prefilter, features_of
+from rockscan.core.prefilter import (
+    EXACT_SCAN_LIMIT,
+    Prefilter,
+    SensorPrefilter,
+    _sensor_magnitudes,
+    features_of,
+)
 
 __all__ = [
     "NOVELTY_METRICS",
@@ -349,7 +357,28 @@ class _Growth:
         self.taken = set(library.names)
         self.prefilter: Prefilter | None = None
         self._start_prefilter(library.prefilter, cap)
+        # The sensor distance keeps the seed's weights: a new shape adds its spectrum.
+        self.metric = library.sensor_metric
+        self.sensor_spectra = _grown(self.metric.spectra, cap)
+        self.sensor_norm_sq = _grown(self.metric.norm_sq, cap)
+        # Cutoffs (an observed library stores none): the seed's, and their median for new shapes.
+        self.new_cutoff = float(np.median(library.cutoffs))
+        self.cutoffs = _grown(library.cutoffs, cap)
+        self.cutoffs[n:] = self.new_cutoff
+        seed_clean = library.calibration_in_force.clean_cutoffs
+        self.new_clean_cutoff = float(np.median(seed_clean))
+        self.clean_cutoffs = _grown(seed_clean, cap)
+        self.clean_cutoffs[n:] = self.new_clean_cutoff
+        self.sensor_filter: SensorPrefilter | None = None
+        self._start_sensor_filter(library.sensor_prefilter, cap)
         self.latest = library
+
+    def _start_sensor_filter(self, sensor_filter: SensorPrefilter | None, cap: int) -> None:
+        """Buffers for the sensor prefilter's rows, once the library has one."""
+        self.sensor_filter = sensor_filter
+        if sensor_filter is not None:
+            self.sensor_features = _grown(sensor_filter.features, cap)
+            self.sensor_feature_sq = _grown(sensor_filter.norm_sq, cap)
 
     def _start_prefilter(self, prefilter: Prefilter | None, cap: int) -> None:
         """Buffers for the prefilter's rows, once the library has one."""
@@ -360,6 +389,7 @@ class _Growth:
             self.features[: prefilter.n_shapes, : prefilter.features.shape[1]] = prefilter.features
             self.feature_norm_sq = _grown(prefilter.norm_sq, cap)
 
+    @one_blas_thread
     def append(self, name: str, radii: NDArray[np.float64]) -> Library:
         """The library with one more shape, grown in place (see the class docstring)."""
         lib = self.latest
@@ -391,6 +421,9 @@ class _Growth:
             c += 1
         self.weights[n, :c] = omega
         self.omega_norm_sq[n] = omega @ omega
+        spectrum = self.metric.sample_spectrum(radii)
+        self.sensor_spectra[n] = spectrum
+        self.sensor_norm_sq[n] = float(np.sum(_sensor_magnitudes(spectrum[None], radii.size) ** 2))
         self.radii[n] = radii / radii.mean()
         self.interest[n] = 1.0
         self.symmetry[n] = symmetry_order(radii)
@@ -426,6 +459,7 @@ class _Growth:
         )
         object.__setattr__(grown, "reference_map", lib.reference_map)
         object.__setattr__(grown, "scan_templates", self.templates)
+        self._grow_sensor(grown)
         if self.prefilter is None:
             if n > EXACT_SCAN_LIMIT:  # grown past the size scanned whole: built once
                 self._start_prefilter(grown.prefilter, self.radii.shape[0])
@@ -451,10 +485,57 @@ class _Growth:
         grown.set_prefilter(grown_filter)
         return grown
 
+    def _grow_sensor(self, grown: Library) -> None:
+        """The grown library's sensor metric, cutoffs and sensor prefilter, as views of the buffers."""
+        n = self.n
+        metric = replace(self.metric, spectra=self.sensor_spectra[:n], norm_sq=self.sensor_norm_sq[:n])
+        object.__setattr__(grown, "sensor_metric", metric)
+        # Not stored with the library (calibration stays None): what cutoffs reads.
+        calibration = object.__new__(Calibration)
+        for key, value in (
+            ("cutoffs", self.cutoffs[:n]),
+            ("clean_cutoffs", self.clean_cutoffs[:n]),
+            ("spacing", np.broadcast_to(np.inf, (n,))),
+            ("crowded", np.broadcast_to(False, (n,))),
+            ("calibrated", np.broadcast_to(False, (n,))),
+            ("tolerance", metric.tolerance),
+            ("seed", 0),
+            ("version", CALIBRATION_VERSION),
+            ("note", "the seed library's cutoffs; their median for observed shapes"),
+            ("samples", None),
+        ):
+            object.__setattr__(calibration, key, value)
+        object.__setattr__(grown, "_calibrated_on_use", calibration)
+        if self.sensor_filter is None:
+            if n > EXACT_SCAN_LIMIT:  # grown past the size scanned whole: built once
+                self._start_sensor_filter(grown.sensor_prefilter, self.radii.shape[0])
+            else:
+                object.__setattr__(grown, "sensor_prefilter", None)
+            return
+        sf = self.sensor_filter
+        mags = _sensor_magnitudes(self.sensor_spectra[n - 1][None], grown.face_config.n_angles)
+        row = (features_of(mags, sf.n_lead, sf.group)[0].astype(np.float64) - sf.centre).astype(np.float32)
+        self.sensor_features[n - 1] = row
+        self.sensor_feature_sq[n - 1] = row @ row
+        grown_filter = object.__new__(SensorPrefilter)
+        for key in ("centre", "n_lead", "group", "n_first"):
+            object.__setattr__(grown_filter, key, getattr(sf, key))
+        object.__setattr__(grown_filter, "features", self.sensor_features[:n])
+        object.__setattr__(grown_filter, "norm_sq", self.sensor_feature_sq[:n])
+        self.sensor_filter = grown_filter
+        object.__setattr__(grown, "sensor_prefilter", grown_filter)
+
     def _enlarge(self) -> None:
         cap = 2 * self.radii.shape[0]
         for name in ("radii", "interest", "symmetry", "weights", "omega_norm_sq"):
             setattr(self, name, _grown(getattr(self, name), cap))
+        for name in ("sensor_spectra", "sensor_norm_sq", "cutoffs", "clean_cutoffs"):
+            setattr(self, name, _grown(getattr(self, name), cap))
+        self.cutoffs[self.n :] = self.new_cutoff
+        self.clean_cutoffs[self.n :] = self.new_clean_cutoff
+        if self.sensor_filter is not None:
+            self.sensor_features = _grown(self.sensor_features, cap)
+            self.sensor_feature_sq = _grown(self.sensor_feature_sq, cap)
         if self.prefilter is not None:
             self.features = _grown(self.features, cap)
             self.feature_norm_sq = _grown(self.feature_norm_sq, cap)

@@ -33,8 +33,18 @@ scan's nearest was among the invariant's 64 nearest in 63-78% of samples
 
 MScore needs every shape's distance ``w``. Besides the pruned scan, a fixed
 random sample of ``n_reference`` shapes is scanned exactly; each shape left
-out gets ``sqrt(lb_k)`` times the ratio of exact distance to that bound over
-the sample (a ratio estimate), and never less than the nearest distance.
+out gets the least-squares line of exact distance against ``sqrt(lb_k)`` over
+the sample, at its own bound, and never less than the nearest distance.
+
+Two refinements keep the bound's own cost low. The rotations are first cut
+into ``_ARCS`` arcs: over an arc the sample's vectors lie in a ball of centre
+``c`` and radius ``r``, so ``max(||c - S_k|| - r, 0)**2`` bounds every rotation
+of it (:meth:`Prefilter.coarse_bounds`); the full bound is computed only for
+the shapes that one leaves. The sensor distance (rockscan.core.calibrate), which
+ranks noisy samples, has its own bound (:class:`SensorPrefilter`): the
+magnitudes of the log radii's harmonics, which turning leaves alone. When it
+ranks, the eigenspace distances only feed MScore and are scanned for the
+sensor's nearest shapes and the reference sample alone.
 
 Libraries of at most ``EXACT_SCAN_LIMIT`` shapes are scanned whole.
 """
@@ -50,21 +60,29 @@ from numpy.typing import NDArray
 from rockscan.core.errors import ParameterError
 
 if TYPE_CHECKING:
+    from rockscan.core.calibrate import SensorMetric
     from rockscan.core.library import Library
+    from rockscan.core.match import ScanTemplates
 
-__all__ = ["EXACT_SCAN_LIMIT", "Prefilter", "Shortlist", "features_of"]
+__all__ = ["EXACT_SCAN_LIMIT", "Prefilter", "SensorPrefilter", "SensorShortlist", "Shortlist", "features_of"]
 
 #: Libraries of at most this many shapes are scanned whole (no pruning).
 EXACT_SCAN_LIMIT = 500
 #: Leading eigenfaces of the bound, and the size of the groups of the others.
 DEFAULT_LEAD = 16
 DEFAULT_GROUP = 8
+#: Harmonics of the sensor bound kept one by one (the weights fall fast above them).
+DEFAULT_SENSOR_LEAD = 32
 #: Shapes of smallest bound scanned first, to find a distance to prune with.
 DEFAULT_FIRST = 32
 #: Shapes drawn once at random and always scanned, to estimate the others' distances.
 DEFAULT_REFERENCE = 64
 #: Shapes whose bounds are computed at once (bounded memory for large libraries).
 _BLOCK = 16384
+#: Shapes of the sensor pass scanned exactly at a time, by increasing bound.
+_SENSOR_BATCH = 64
+#: Arcs of consecutive rotations of the coarse bound (see Prefilter.coarse_bounds).
+_ARCS = 24
 
 
 @dataclass(frozen=True)
@@ -105,16 +123,19 @@ class Shortlist:
         Returns
         -------
         w_all : (n_shapes,) ndarray of float
-            Exact where scanned; elsewhere the bound times the ratio of exact
-            distance to bound over the reference sample, never below the
-            nearest shape's distance.
+            Exact where scanned; elsewhere the least-squares line of exact
+            distance against bound over the reference sample, at the shape's
+            bound, never below the nearest shape's distance.
         shift_all : (n_shapes,) ndarray of float
             Best rotations where scanned, NaN elsewhere.
         """
         sample = self.is_reference if self.is_reference.any() else np.ones(w.size, dtype=bool)
-        bound = self.bound[self.index[sample]]
-        ratio = float(w[sample].sum() / bound.sum()) if bound.sum() > 0 else 1.0
-        w_all = np.maximum(self.bound * ratio, float(w.min()))
+        x, y = self.bound[self.index[sample]], w[sample]
+        # A straight line through the reference sample's (bound, distance) pairs:
+        # the bound tracks the distance closely but not in proportion.
+        spread = float(np.sum((x - x.mean()) ** 2))
+        slope = float(np.sum((x - x.mean()) * (y - y.mean())) / spread) if spread > 0 else 0.0
+        w_all = np.maximum(float(y.mean()) + slope * (self.bound - float(x.mean())), float(w.min()))
         w_all[self.index] = w
         shift_all = np.full(self.bound.size, np.nan)
         shift_all[self.index] = best_shift
@@ -203,7 +224,10 @@ class Prefilter:
         )
 
     def bounds(
-        self, omega: NDArray[np.float64], extra_sq: NDArray[np.float64] | None = None
+        self,
+        omega: NDArray[np.float64],
+        extra_sq: NDArray[np.float64] | None = None,
+        rows: NDArray[np.int64] | None = None,
     ) -> NDArray[np.float64]:
         """Lower bounds of every shape's squared distance at its best rotation.
 
@@ -214,28 +238,79 @@ class Prefilter:
         extra_sq : (n_rotations,) ndarray of float, optional
             A term every shape's squared distance adds at each rotation (the
             squared distance from face space, for the whole-face metric).
+        rows : (n,) ndarray of int, optional
+            Only these shapes (default: all).
 
         Returns
         -------
-        lb : (n_shapes,) ndarray of float
+        lb : (n_shapes,) or (n,) ndarray of float
         """
+        sample, sample_sq = self._sample(omega, extra_sq)
+        features = self.features if rows is None else self.features[rows]
+        norm_sq = self.norm_sq if rows is None else self.norm_sq[rows]
+        out = np.empty(features.shape[0])
+        for start in range(0, features.shape[0], _BLOCK):
+            block = slice(start, start + _BLOCK)
+            # min over rotations of ||s(a)||**2 - 2 s(a) . S_k, then + ||S_k||**2.
+            cross = sample @ features[block].T
+            cross *= -2.0
+            cross += sample_sq[:, None]
+            out[block] = cross.min(axis=0) + norm_sq[block]
+        # Single-precision products: keep the bound a bound by the size of their rounding.
+        slack = 1e-5 * (float(sample_sq.max()) + norm_sq)
+        return np.maximum(out - slack, 0.0)
+
+    def coarse_bounds(
+        self, omega: NDArray[np.float64], extra_sq: NDArray[np.float64] | None = None
+    ) -> NDArray[np.float64]:
+        """Cheaper, looser lower bounds than :meth:`bounds`, of every shape.
+
+        The rotations are cut into ``_ARCS`` arcs of consecutive ones; the
+        sample's vectors over an arc lie in a ball of centre ``c`` and radius
+        ``r``, so by the triangle inequality every rotation of the arc is at
+        least ``max(||c - S_k|| - r, 0)`` from shape k. The work is ``_ARCS``
+        vectors per shape instead of one per rotation.
+        """
+        sample, _ = self._sample(omega, None)
+        n_rot = sample.shape[0]
+        arcs = min(_ARCS, n_rot)
+        edges = np.linspace(0, n_rot, arcs + 1).astype(np.int64)
+        sizes = np.diff(edges)
+        centres = np.add.reduceat(sample, edges[:-1], axis=0) / sizes[:, None].astype(np.float32)
+        arc_of = np.repeat(np.arange(arcs), sizes)
+        spread = np.sqrt(np.einsum("ad,ad->a", sample - centres[arc_of], sample - centres[arc_of]))
+        # Rounding of single precision: the radius taken larger, the distance smaller.
+        radius = np.maximum.reduceat(spread, edges[:-1]) * np.float32(1.0 + 1e-4)
+        extra = np.zeros(arcs) if extra_sq is None else np.minimum.reduceat(extra_sq, edges[:-1])
+        extra = np.maximum(extra, 0.0).astype(np.float32)
+        centre_sq = np.einsum("md,md->m", centres, centres)
+        slack = (1e-5 * (float(centre_sq.max()) + self.norm_sq)).astype(np.float32)
+        out = np.empty(self.n_shapes)
+        for start in range(0, self.n_shapes, _BLOCK):
+            block = slice(start, start + _BLOCK)
+            dist_sq = centres @ self.features[block].T
+            dist_sq *= -2.0
+            dist_sq += centre_sq[:, None]
+            dist_sq += (self.norm_sq[block] - slack[block])[None, :]
+            np.maximum(dist_sq, 0.0, out=dist_sq)
+            gap = np.sqrt(dist_sq, out=dist_sq)
+            gap -= radius[:, None]
+            np.maximum(gap, 0.0, out=gap)
+            gap *= gap
+            gap += extra[:, None]
+            out[block] = gap.min(axis=0)
+        return out
+
+    def _sample(
+        self, omega: NDArray[np.float64], extra_sq: NDArray[np.float64] | None
+    ) -> tuple[NDArray[np.float32], NDArray[np.float32]]:
         sample = features_of(omega, self.n_lead, self.group)
         if sample.shape[1] < self.features.shape[1]:  # groups of eigenfaces not yet in use
             sample = np.pad(sample, ((0, 0), (0, self.features.shape[1] - sample.shape[1])))
         sample_sq = np.einsum("ad,ad->a", sample, sample)
         if extra_sq is not None:
             sample_sq = sample_sq + extra_sq.astype(np.float32)
-        out = np.empty(self.n_shapes)
-        for start in range(0, self.n_shapes, _BLOCK):
-            rows = slice(start, start + _BLOCK)
-            # min over rotations of ||s(a)||**2 - 2 s(a) . S_k, then + ||S_k||**2.
-            cross = sample @ self.features[rows].T
-            cross *= -2.0
-            cross += sample_sq[:, None]
-            out[rows] = cross.min(axis=0) + self.norm_sq[rows]
-        # Single-precision products: keep the bound a bound by the size of their rounding.
-        slack = 1e-5 * (float(sample_sq.max()) + self.norm_sq)
-        return np.maximum(out - slack, 0.0)
+        return sample, sample_sq
 
     def first(self, lb: NDArray[np.float64]) -> NDArray[np.int64]:
         """The ``n_first`` shapes of smallest bound, increasing."""
@@ -265,13 +340,249 @@ class Prefilter:
         if metric == "face":
             extra_sq = np.maximum(templates.centered_norm_sq(q, spectrum) - norm_sq, 0.0)
             norm_sq = norm_sq + extra_sq
-        lb = self.bounds(omega, extra_sq)
-        first = self.first(lb)
-        weights = templates.shape_weights[first]
-        exact_sq = norm_sq[:, None] + templates.omega_norm_sq[None, first] - 2.0 * (omega @ weights.T)
-        index = np.union1d(np.flatnonzero(lb <= float(exact_sq.min())), self.reference)
-        is_reference = np.isin(index, self.reference) & (lb[index] > float(exact_sq.min()))
-        return Shortlist(index, np.sqrt(lb), is_reference, spectrum, omega)
+        # The coarse bound of every shape, then the fine one of those it leaves in:
+        # any shape whose bound exceeds a distance already found cannot be nearest.
+        coarse = self.coarse_bounds(omega, extra_sq)
+        best = self._best_of(omega, norm_sq, templates, self.first(coarse))
+        left = np.flatnonzero(coarse <= best)
+        fine = self.bounds(omega, extra_sq, rows=left)
+        if left.size > self.n_first:
+            # The shapes of smallest fine bound lower the distance to prune with.
+            best = min(best, self._best_of(omega, norm_sq, templates, left[self.first(fine)]))
+        index, is_reference = self._with_reference(left[fine <= best])
+        return Shortlist(index, np.sqrt(coarse), is_reference, spectrum, omega)
+
+    def _with_reference(self, kept: NDArray[np.int64]) -> tuple[NDArray[np.int64], NDArray[np.bool_]]:
+        """``kept`` and the reference sample, increasing; which are there only as reference."""
+        mask = np.zeros(self.n_shapes, dtype=bool)
+        mask[self.reference] = True
+        mask[kept] = True
+        index = np.flatnonzero(mask)
+        mask[:] = True
+        mask[kept] = False
+        return index, mask[index]
+
+    @staticmethod
+    def _best_of(
+        omega: NDArray[np.float64],
+        norm_sq: NDArray[np.float64],
+        templates: ScanTemplates,
+        rows: NDArray[np.int64],
+    ) -> float:
+        """The least exact squared distance, over rotations, of some shapes."""
+        cross = omega @ templates.shape_weights[rows].T
+        return float((norm_sq[:, None] + templates.omega_norm_sq[None, rows] - 2.0 * cross).min())
+
+    def around(
+        self,
+        q: NDArray[np.float64],
+        library: Library,
+        shapes: NDArray[np.int64],
+        estimate: NDArray[np.float64],
+    ) -> Shortlist:
+        """A shortlist of given shapes and the reference sample, not pruned by a bound.
+
+        For a sample whose nearest shape another distance decides
+        (:class:`SensorPrefilter`): only the scanned shapes' distances are exact,
+        the others are ``estimate`` times the ratio over the reference sample.
+        """
+        spectrum, omega = library.scan_templates.coordinates(q)
+        index, is_reference = self._with_reference(np.asarray(shapes, dtype=np.int64))
+        return Shortlist(index, np.asarray(estimate, dtype=np.float64), is_reference, spectrum, omega)
+
+
+@dataclass(frozen=True)
+class SensorShortlist:
+    """The shapes whose sensor distance one sample's exact pass computed.
+
+    Attributes
+    ----------
+    index : (n_scanned,) ndarray of int
+        Library positions, increasing: every shape that could be the nearest.
+    dist_sq : (n_scanned,) ndarray of float
+        Their exact squared sensor distances at their best rotations.
+    bound : (n_shapes,) ndarray of float
+        Every shape's lower bound of the squared distance; exact where scanned.
+    """
+
+    index: NDArray[np.int64]
+    dist_sq: NDArray[np.float64]
+    bound: NDArray[np.float64]
+
+    @property
+    def nearest(self) -> int:
+        """The library position of the nearest shape (the exhaustive pass's)."""
+        return int(self.index[int(np.argmin(self.dist_sq))])
+
+    def nearest_few(self, count: int = DEFAULT_FIRST) -> NDArray[np.int64]:
+        """The ``count`` nearest shapes by their exact distances, increasing library positions."""
+        if self.index.size <= count:
+            return self.index
+        return np.sort(self.index[np.argpartition(self.dist_sq, count - 1)[:count]])
+
+
+@dataclass(frozen=True, eq=False)
+class SensorPrefilter:
+    """Rotation-invariant vectors of every shape that bound its sensor distance from below.
+
+    Turning a sample multiplies each harmonic ``X_f`` of its log radii by a
+    phase, so ``|X_f e^{-i phi_f} - Y_f| >= | |X_f| - |Y_f| |`` at every
+    rotation: with ``w_f`` the sensor weights and ``c_f`` the harmonic's
+    count in the full spectrum (1 or 2),
+
+        min_a d(x, y)**2 >= sum_f c_f w_f (|X_f| - |Y_f|)**2,
+
+    and the same per group of harmonics of their norms (``features_of``).
+    The bound of every shape is one short product (``n_lead`` harmonics, then
+    groups of ``group``); the ``n_first`` smallest are scanned exactly, then,
+    by increasing bound and ``_SENSOR_BATCH`` at a time, every shape whose
+    bound is below the best distance found so far. No other shape can be
+    nearer: the nearest shape is the exhaustive pass's.
+
+    Build one with :meth:`from_metric`.
+
+    Attributes
+    ----------
+    features : (n_shapes, n_features) ndarray of float32
+        Each shape's weighted magnitudes less their mean over the library.
+    centre : (n_features,) ndarray of float64
+        That mean.
+    n_lead, group : int
+    n_first : int
+    """
+
+    features: NDArray[np.float32]
+    centre: NDArray[np.float64]
+    n_lead: int = DEFAULT_SENSOR_LEAD
+    group: int = DEFAULT_GROUP
+    n_first: int = DEFAULT_FIRST
+    norm_sq: NDArray[np.float32] = field(init=False, repr=False)
+
+    def __post_init__(self) -> None:
+        features = np.ascontiguousarray(self.features, dtype=np.float32)
+        object.__setattr__(self, "features", features)
+        object.__setattr__(self, "norm_sq", np.einsum("kd,kd->k", features, features))
+
+    @classmethod
+    def from_metric(
+        cls,
+        metric: SensorMetric,
+        *,
+        n_lead: int = DEFAULT_SENSOR_LEAD,
+        group: int = DEFAULT_GROUP,
+        n_first: int = DEFAULT_FIRST,
+        min_shapes: int = EXACT_SCAN_LIMIT,
+    ) -> SensorPrefilter | None:
+        """The prefilter of a library's sensor metric, or None for one scanned whole."""
+        if metric.spectra.shape[0] <= min_shapes:
+            return None
+        mags = _sensor_magnitudes(metric.spectra, metric.n_angles)
+        raw = features_of(mags, int(n_lead), int(group)).astype(np.float64)
+        centre = raw.mean(axis=0)
+        return cls(
+            features=(raw - centre).astype(np.float32),
+            centre=centre,
+            n_lead=int(n_lead),
+            group=int(group),
+            n_first=int(n_first),
+        )
+
+    @property
+    def n_shapes(self) -> int:
+        """Number of library shapes."""
+        return int(self.features.shape[0])
+
+    def bounds(self, spectrum: NDArray[np.complex128], n_angles: int) -> NDArray[np.float64]:
+        """Lower bounds of every shape's squared sensor distance at its best rotation.
+
+        Parameters
+        ----------
+        spectrum : (n_freq,) ndarray of complex
+            The sample's :meth:`rockscan.core.calibrate.SensorMetric.sample_spectrum`.
+        n_angles : int
+        """
+        sample = features_of(_sensor_magnitudes(spectrum[None], n_angles), self.n_lead, self.group)[0]
+        sample = (sample.astype(np.float64) - self.centre).astype(np.float32)
+        sample_sq = float(sample @ sample)
+        out = self.features @ sample
+        out *= -2.0
+        out += self.norm_sq
+        out += sample_sq
+        # Single-precision products: keep the bound a bound by the size of their rounding.
+        slack = 1e-5 * (sample_sq + self.norm_sq)
+        return np.maximum(out.astype(np.float64) - slack, 0.0)
+
+    def bounds_with(
+        self, radii: NDArray[np.float64], metric: SensorMetric, shapes: NDArray[np.int64]
+    ) -> NDArray[np.float64]:
+        """Every shape's bound of one sample, with the exact squared distance for ``shapes``."""
+        spectrum = metric.sample_spectrum(radii)
+        lb = self.bounds(spectrum, metric.n_angles)
+        lb[shapes] = _sensor_min_sq(metric, spectrum, shapes)
+        return lb
+
+    def select(self, radii: NDArray[np.float64], metric: SensorMetric) -> SensorShortlist:
+        """The shapes that could be nearest by the sensor distance, and their exact distances.
+
+        Parameters
+        ----------
+        radii : (n_angles,) ndarray of float
+            The sample.
+        metric : SensorMetric
+            The library's metric this prefilter was made from.
+        """
+        spectrum = metric.sample_spectrum(radii)
+        lb = self.bounds(spectrum, metric.n_angles)
+        k = min(self.n_first, lb.size)
+        first = np.argpartition(lb, k - 1)[:k] if k < lb.size else np.arange(lb.size)
+        first_sq = _sensor_min_sq(metric, spectrum, first)
+        best = float(first_sq.min())
+        below = lb <= best
+        below[first] = False
+        rest = np.flatnonzero(below)
+        rest = rest[np.argsort(lb[rest], kind="stable")]
+        # By increasing bound, a batch at a time: each batch lowers the distance to
+        # prune with, and a shape whose bound exceeds it is never scanned.
+        done, found = [first], [first_sq]
+        for start in range(0, rest.size, _SENSOR_BATCH):
+            batch = rest[start : start + _SENSOR_BATCH]
+            batch = batch[lb[batch] <= best]
+            if batch.size == 0:
+                break
+            batch_sq = _sensor_min_sq(metric, spectrum, batch)
+            best = min(best, float(batch_sq.min()))
+            done.append(batch)
+            found.append(batch_sq)
+        index, dist_sq = np.concatenate(done), np.concatenate(found)
+        order = np.argsort(index)
+        index, dist_sq = index[order], dist_sq[order]
+        lb[index] = dist_sq
+        return SensorShortlist(index, dist_sq, lb)
+
+
+def _sensor_magnitudes(spectra: NDArray[np.complex128], n_angles: int) -> NDArray[np.float64]:
+    """``sqrt(c_f) |spectra|``: their squared differences sum over the full spectrum."""
+    count = np.full(spectra.shape[-1], 2.0)
+    count[0] = 1.0
+    if n_angles % 2 == 0:
+        count[-1] = 1.0
+    return np.abs(spectra) * np.sqrt(count)
+
+
+def _sensor_min_sq(
+    metric: SensorMetric, spectrum: NDArray[np.complex128], shapes: NDArray[np.int64]
+) -> NDArray[np.float64]:
+    """Exact squared sensor distances of one sample to some shapes, each at its best rotation."""
+    if shapes.size == 0:
+        return np.zeros(0)
+    n = metric.n_angles
+    count = np.full(spectrum.size, 2.0)
+    count[0] = 1.0
+    if n % 2 == 0:
+        count[-1] = 1.0
+    own = float(np.sum(count * np.abs(spectrum) ** 2))
+    corr = np.fft.irfft(spectrum[None, :] * np.conj(metric.spectra[shapes]), n=n, axis=-1)
+    return np.maximum(own + metric.norm_sq[shapes] - 2.0 * n * corr.max(axis=1), 0.0)
 
 
 def features_of(omega: NDArray[np.float64], n_lead: int, group: int) -> NDArray[np.float32]:

@@ -43,6 +43,8 @@ _ARRAYS = ("radii", "interest", "symmetry", "mean", "components", "eigenvalues",
 _CUTOFF_ARRAYS = ("cutoffs", "cutoff_spacing", "cutoff_crowded", "cutoff_calibrated")
 #: Stored since calibration version 2 (the cutoff of a sample without noise of its own).
 _CLEAN_CUTOFFS = "cutoff_clean"
+#: A large library's sensor metric (optional: made on first use when absent).
+_SENSOR_ARRAYS = ("sensor_weights", "sensor_spectra", "sensor_norm_sq")
 
 
 def save_library(library: Library, path: str | os.PathLike[str]) -> None:
@@ -77,6 +79,7 @@ def save_library(library: Library, path: str | os.PathLike[str]) -> None:
             zip(_CUTOFF_ARRAYS, (cal.cutoffs, cal.spacing, cal.crowded, cal.calibrated), strict=True)
         )
         cutoff_arrays[_CLEAN_CUTOFFS] = cal.clean_cutoffs
+    sensor_arrays = _sensor_arrays(library, metadata)  # adds its record to the metadata
     arrays = {
         "metadata": np.frombuffer(json.dumps(metadata).encode("utf-8"), dtype=np.uint8),
         "radii": library.radii,
@@ -87,6 +90,7 @@ def save_library(library: Library, path: str | os.PathLike[str]) -> None:
         "eigenvalues": library.basis.eigenvalues,
         "weights": library.basis.weights,
         **cutoff_arrays,
+        **sensor_arrays,
     }
     with atomic_file(path, what="library") as fh:
         np.savez(fh, **arrays)
@@ -114,8 +118,7 @@ def load_library(path: str | os.PathLike[str]) -> Library:
         raise LibraryError(f"{path}: library file not found")
     if path.is_dir():
         raise LibraryError(f"{path}: is a folder, not a library file")
-    raw, arrays = _read_archive(path)
-    meta = _library_metadata(raw, path)
+    meta, arrays = _read_archive(path)
     version = meta.get("version")
     if not isinstance(version, int) or version < 1:
         raise LibraryError(f"{path}: library metadata has no valid format version")
@@ -128,8 +131,8 @@ def load_library(path: str | os.PathLike[str]) -> Library:
     return _recalibrated(library, version, path)
 
 
-def _read_archive(path: Path) -> tuple[NDArray, dict[str, NDArray]]:
-    """The metadata record and the arrays of a library file, each checked before it is inflated."""
+def _read_archive(path: Path) -> tuple[dict[str, object], dict[str, NDArray]]:
+    """The metadata and the arrays of a library file, each checked before it is inflated."""
     try:
         with open(path, "rb") as fh:
             magic = fh.read(6)
@@ -146,9 +149,10 @@ def _read_archive(path: Path) -> tuple[NDArray, dict[str, NDArray]]:
                 missing = [k for k in ("metadata", *_ARRAYS) if k not in archive.files]
                 if missing:
                     raise LibraryError(f"{path}: not a rockscan library (missing {', '.join(missing)})")
-                raw = archive["metadata"]
+                meta = _library_metadata(archive["metadata"], path)
+                archive.max_bytes = _budget(meta)
                 arrays = {k: archive[k] for k in _ARRAYS}
-                stored = (*_CUTOFF_ARRAYS, _CLEAN_CUTOFFS)
+                stored = (*_CUTOFF_ARRAYS, _CLEAN_CUTOFFS, *_SENSOR_ARRAYS)
                 arrays.update({k: archive[k] for k in stored if k in archive.files})
     except LibraryError:
         raise
@@ -156,7 +160,7 @@ def _read_archive(path: Path) -> tuple[NDArray, dict[str, NDArray]]:
         raise LibraryError(f"{path}: library file is truncated or corrupt ({_first_line(exc)})") from None
     except (ValueError, OSError, AttributeError, KeyError) as exc:
         raise LibraryError(f"{path}: not a rockscan library file ({_first_line(exc)})") from None
-    return raw, arrays
+    return meta, arrays
 
 
 def _library_from(meta: dict[str, object], arrays: dict[str, NDArray], path: Path) -> Library:
@@ -187,11 +191,79 @@ def _library_from(meta: dict[str, object], arrays: dict[str, NDArray], path: Pat
             basis=basis,
             calibration=_read_calibration(meta, arrays, path),
         )
+        _attach_sensor_metric(library, meta, arrays)
     except ParameterError as exc:
         raise LibraryError(f"{path}: library cutoffs are inconsistent ({_first_line(exc)})") from None
     except (KeyError, TypeError, ValueError, OverflowError) as exc:
         raise LibraryError(f"{path}: library file is inconsistent ({_first_line(exc)})") from None
     return library
+
+
+def _budget(meta: dict[str, object]) -> int:
+    """Bytes the arrays of a library file may take: ``MAX_ARCHIVE_BYTES``, and for a
+    library of more than ``EXACT_LIMIT`` shapes what its per-shape arrays can take
+    besides (about 8 KiB a shape at 360 rays)."""
+    from rockscan.core.library import EXACT_LIMIT
+    from rockscan.io import _npzsafe
+
+    names, face = meta.get("names"), meta.get("face")
+    n = len(names) if isinstance(names, list) else 0
+    rays = face.get("n_angles") if isinstance(face, dict) else None
+    rays = rays if isinstance(rays, int) and 0 < rays <= 1 << 16 else 360
+    # Radii, sensor spectra (pairs of floats) and up to 256 coordinates, plus the per-shape scalars.
+    per_shape = 8 * (rays + 2 * (rays // 2 + 1) + 256 + 8)
+    return _npzsafe.MAX_ARCHIVE_BYTES + (n * per_shape if n > EXACT_LIMIT else 0)
+
+
+def _sensor_arrays(library: Library, metadata: dict[str, object]) -> dict[str, NDArray]:
+    """A large library's sensor metric, so that loading it need not remake it (optional fields)."""
+    from rockscan.core.library import EXACT_LIMIT
+
+    if len(library) <= EXACT_LIMIT:
+        return {}
+    metric = library.sensor_metric
+    metadata["sensor"] = {
+        "tolerance": metric.tolerance,
+        "noise_band": list(metric.noise_band),
+        "noise_gain": metric.noise_gain,
+        "noise_floor": metric.noise_floor,
+    }
+    # Complex numbers as pairs of floats: library files hold real arrays only.
+    spectra = np.ascontiguousarray(metric.spectra, dtype=np.complex128).view(np.float64)
+    return dict(zip(_SENSOR_ARRAYS, (metric.weights, spectra, metric.norm_sq), strict=True))
+
+
+def _attach_sensor_metric(library: Library, meta: dict[str, object], arrays: dict[str, NDArray]) -> None:
+    """The stored sensor metric, when the file has one (files without it make it on first use)."""
+    from rockscan.core.calibrate import SensorMetric
+
+    sensor = meta.get("sensor")
+    if not isinstance(sensor, dict) or any(k not in arrays for k in _SENSOR_ARRAYS):
+        return
+    weights, pairs, norm_sq = (np.asarray(arrays[k]) for k in _SENSOR_ARRAYS)
+    n_freq = library.face_config.n_angles // 2 + 1
+    if pairs.shape != (len(library), 2 * n_freq) or pairs.dtype != np.float64:
+        raise ValueError("its sensor metric does not fit its shapes")
+    spectra = np.ascontiguousarray(pairs).view(np.complex128)
+    if (
+        weights.shape != (n_freq,)
+        or spectra.shape != (len(library), n_freq)
+        or norm_sq.shape != (len(library),)
+        or not all(np.all(np.isfinite(a)) for a in (weights, spectra, norm_sq))
+    ):
+        raise ValueError("its sensor metric does not fit its shapes")
+    lo, hi = (int(v) for v in sensor["noise_band"])
+    metric = SensorMetric(
+        weights=weights.astype(np.float64),
+        spectra=spectra.astype(np.complex128),
+        norm_sq=norm_sq.astype(np.float64),
+        tolerance=float(sensor["tolerance"]),
+        noise_band=(lo, hi),
+        noise_gain=float(sensor["noise_gain"]),
+        noise_floor=float(sensor["noise_floor"]),
+    )
+    if metric.tolerance == library.tolerance:  # else made anew for the library's tolerance
+        object.__setattr__(library, "sensor_metric", metric)
 
 
 def _recalibrated(library: Library, version: int, path: Path) -> Library:
