@@ -277,20 +277,7 @@ class Library:
         if face_array is not None and face_array.shape != (len(names), *config.face_shape):
             raise LibraryError(f"faces must be (n_shapes, {', '.join(map(str, config.face_shape))})")
         try:
-            if len(names) == 1:
-                one = information_face(radii, config) if face_array is None else face_array
-                flat = one.reshape(1, -1)
-                basis = EigenBasis(
-                    mean=flat[0],
-                    components=np.empty((0, flat.shape[1])),
-                    eigenvalues=np.empty(0),
-                    weights=np.zeros((1, 0)),
-                )
-            elif len(names) <= exact_limit:
-                face_array = information_face(radii, config) if face_array is None else face_array
-                basis = EigenBasis.from_faces(face_array, n_components=n_components)
-            else:
-                basis = _streamed_basis(radii, config, face_array, n_components)
+            basis = _basis(radii, config, face_array, n_components, exact_limit)
             metric = None
             if calibration is None:
                 # The metric calibrate needs is the library's own: made once, kept.
@@ -647,6 +634,29 @@ def _face_function(config: FaceConfig):  # type: ignore[no-untyped-def]
     if config.grid == "polar" and config.kind != "radii":
         return _FaceTable(config).faces
     return lambda radii: information_face(radii, config)
+
+
+def _basis(
+    radii: NDArray[np.float64],
+    config: FaceConfig,
+    faces: NDArray[np.float64] | None,
+    n_components: int | None,
+    exact_limit: int,
+) -> EigenBasis:
+    """The eigenface basis of a library's faces: none for one shape (its face space is
+    a point), exact up to ``exact_limit`` shapes, streamed and truncated beyond."""
+    if radii.shape[0] == 1:
+        flat = (information_face(radii, config) if faces is None else faces).reshape(1, -1)
+        return EigenBasis(
+            mean=flat[0],
+            components=np.empty((0, flat.shape[1])),
+            eigenvalues=np.empty(0),
+            weights=np.zeros((1, 0)),
+        )
+    if radii.shape[0] <= exact_limit:
+        faces = information_face(radii, config) if faces is None else faces
+        return EigenBasis.from_faces(faces, n_components=n_components)
+    return _streamed_basis(radii, config, faces, n_components)
 
 
 def _streamed_basis(

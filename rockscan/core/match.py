@@ -46,7 +46,7 @@ from rockscan.core.information import information_face, sample_term
 
 if TYPE_CHECKING:
     from rockscan.core.library import Library
-    from rockscan.core.prefilter import Shortlist
+    from rockscan.core.prefilter import Prefilter, SensorPrefilter, SensorShortlist, Shortlist
 
 
 __all__ = [
@@ -482,14 +482,7 @@ def match_radii(radii: ArrayLike, library: Library, config: MatchConfig | None =
     sensor_list = None
     if sensor_filter is not None and metric == "sensor":
         sensor_list = sensor_filter.select(radii, library.sensor_metric)
-    if prefilter is None:
-        shortlist = None
-    elif sensor_list is not None and config.mscore_cutoff is None:
-        # The sensor distance ranks: the eigenspace distances only feed MScore, which
-        # decides nothing here, so they are exact for the sensor's candidates alone.
-        shortlist = prefilter.around(q, library, sensor_list.nearest_few(), np.sqrt(sensor_list.bound))
-    else:
-        shortlist = prefilter.select(q, library, w_metric)
+    shortlist = _shortlist(prefilter, sensor_list, config, q, library, w_metric)
     dist = _scan(radii, library, metrics, scan=config.scan, q=q, shapes=shortlist)
     chosen = dist[w_metric]
     best_shift = np.argmin(chosen, axis=0)
@@ -500,18 +493,7 @@ def match_radii(radii: ArrayLike, library: Library, config: MatchConfig | None =
         w, best_shift = shortlist.widen(w, best_shift)
     # The sensor distance with the sample's own noise taken out (rockscan.core.calibrate):
     # the ranking is the same, and the cutoffs were calibrated on it.
-    if sensor_list is not None:
-        # Exact for every shape that could be nearest, a lower bound for the others.
-        sensor_sq = sensor_list.bound
-        k = sensor_list.nearest
-    elif sensor_filter is not None:
-        k = nearest_w
-        sensor_sq = sensor_filter.bounds_with(radii, library.sensor_metric, np.array([k]))
-    else:
-        sensor_sq = library.sensor_metric.squared_distances(radii)
-        sensor_sq = sensor_sq.min(axis=0) if config.scan else sensor_sq[0]
-        # Ranked before the noise is taken out: distances below the noise would tie at 0.
-        k = int(np.argmin(sensor_sq)) if metric == "sensor" else nearest_w
+    k, sensor_sq = _sensor_pass(radii, library, config.scan, metric, sensor_filter, sensor_list, nearest_w)
     sensor = library.sensor_metric.corrected(radii, sensor_sq)
     noise = float(library.sensor_metric.noise_level(radii))
     col = k  # the nearest shape's column of dist
@@ -525,23 +507,7 @@ def match_radii(radii: ArrayLike, library: Library, config: MatchConfig | None =
             dist = _scan(radii, library, metrics, scan=config.scan, q=q, shapes=alone)
             col = 0
             best_shift[k] = int(np.argmin(dist[w_metric][:, 0]))
-    step_deg = 360.0 / face_config.n_angles
-    angles = np.mod(best_shift * step_deg, 360.0) if config.scan else np.zeros(w.size)
-    angle_deg = 0.0
-    shift_k = int(best_shift[k])
-    if config.scan:
-        along = dist[config.angle_metric][:, col]
-        shift_k = int(np.argmin(along))
-        shift = float(shift_k) + (_parabola_offset(along**2, shift_k) if config.refine else 0.0)
-        # Every angle alpha + j*360/order fits a shape of that symmetry: report
-        # the smallest, so that equal photos give equal numbers; a circle fits
-        # at every angle and gets 0.
-        order = int(library.symmetry[k])
-        period = 360.0 / order if order > 0 else 0.0
-        angle_deg = float(np.mod(shift * step_deg, period)) if period else 0.0
-        if angle_deg >= period:  # a tiny negative angle rounds up to the period
-            angle_deg = 0.0
-        angles[k] = angle_deg
+    angles, angle_deg = _angles(config, library, dist, col, best_shift, k)
     face = _face_at(radii, library, int(best_shift[k]), q)
     eps_k, dffs = library.basis.distances_and_residual(face, shapes=[k])
     eps_best, residual = float(eps_k[0]), float(dffs)
@@ -572,6 +538,74 @@ def match_radii(radii: ArrayLike, library: Library, config: MatchConfig | None =
         decided_by=decided_by,
         sensor_distances=sensor,
     )
+
+
+def _shortlist(
+    prefilter: Prefilter | None,
+    sensor_list: SensorShortlist | None,
+    config: MatchConfig,
+    q: NDArray[np.float64] | None,
+    library: Library,
+    w_metric: str,
+) -> Shortlist | None:
+    """The shapes the eigenspace scan must score exactly; None: every shape."""
+    if prefilter is None:
+        return None
+    if sensor_list is not None and config.mscore_cutoff is None:
+        # The sensor distance ranks: the eigenspace distances only feed MScore, which
+        # decides nothing here, so they are exact for the sensor's candidates alone.
+        return prefilter.around(q, library, sensor_list.nearest_few(), np.sqrt(sensor_list.bound))
+    return prefilter.select(q, library, w_metric)
+
+
+def _sensor_pass(
+    radii: NDArray[np.float64],
+    library: Library,
+    scan: bool,
+    metric: str,
+    sensor_filter: SensorPrefilter | None,
+    sensor_list: SensorShortlist | None,
+    nearest_w: int,
+) -> tuple[int, NDArray[np.float64]]:
+    """The nearest shape and every shape's squared sensor distance (at its best
+    rotation with ``scan``): exact where it could decide, a lower bound elsewhere."""
+    if sensor_list is not None:
+        # Exact for every shape that could be nearest, a lower bound for the others.
+        return sensor_list.nearest, sensor_list.bound
+    if sensor_filter is not None:
+        return nearest_w, sensor_filter.bounds_with(radii, library.sensor_metric, np.array([nearest_w]))
+    sensor_sq = library.sensor_metric.squared_distances(radii)
+    sensor_sq = sensor_sq.min(axis=0) if scan else sensor_sq[0]
+    # Ranked before the noise is taken out: distances below the noise would tie at 0.
+    return (int(np.argmin(sensor_sq)) if metric == "sensor" else nearest_w), sensor_sq
+
+
+def _angles(
+    config: MatchConfig,
+    library: Library,
+    dist: dict[str, NDArray[np.float64]],
+    col: int,
+    best_shift: NDArray[np.int64],
+    k: int,
+) -> tuple[NDArray[np.float64], float]:
+    """Every shape's best angle, and the nearest shape's refined on ``angle_metric``."""
+    step_deg = 360.0 / library.face_config.n_angles
+    angles = np.mod(best_shift * step_deg, 360.0) if config.scan else np.zeros(best_shift.size)
+    angle_deg = 0.0
+    if config.scan:
+        along = dist[config.angle_metric][:, col]
+        shift_k = int(np.argmin(along))
+        shift = float(shift_k) + (_parabola_offset(along**2, shift_k) if config.refine else 0.0)
+        # Every angle alpha + j*360/order fits a shape of that symmetry: report
+        # the smallest, so that equal photos give equal numbers; a circle fits
+        # at every angle and gets 0.
+        order = int(library.symmetry[k])
+        period = 360.0 / order if order > 0 else 0.0
+        angle_deg = float(np.mod(shift * step_deg, period)) if period else 0.0
+        if angle_deg >= period:  # a tiny negative angle rounds up to the period
+            angle_deg = 0.0
+        angles[k] = angle_deg
+    return angles, angle_deg
 
 
 def _clean_enough(radii: NDArray[np.float64], library: Library) -> bool:
