@@ -1,0 +1,133 @@
+"""The photo as segmentation sees it: validated pixels, a pyramid, and the channels
+(luminance, colour) in which a rock may stand out.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Iterator
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+
+from rockscan.core.errors import ParameterError
+
+_LUMA = np.array([0.299, 0.587, 0.114], np.float32)
+
+
+def _check_pixels(pixels: NDArray[np.generic]) -> NDArray[np.generic]:
+    arr = np.asarray(pixels)
+    if arr.ndim == 3 and arr.shape[2] == 1:
+        arr = arr[..., 0]
+    if arr.ndim not in (2, 3) or arr.size == 0:
+        raise ParameterError(
+            f"a photo must be (rows, cols) or (rows, cols, 3|4) pixels, got shape {np.shape(pixels)}"
+        )
+    if arr.ndim == 3 and arr.shape[2] not in (3, 4):
+        raise ParameterError(f"a photo must have 1, 3 or 4 channels, got {arr.shape[2]}")
+    if min(arr.shape[:2]) < 8:
+        raise ParameterError(f"a photo must be at least 8x8 pixels, got {arr.shape[0]}x{arr.shape[1]}")
+    if arr.dtype.kind not in "uif":
+        raise ParameterError(f"photo pixels must be numbers, got dtype {arr.dtype}")
+    if arr.dtype.kind == "f" and not np.all(np.isfinite(arr)):
+        raise ParameterError("photo pixels must be finite (no NaN or infinity)")
+    return arr
+
+
+def _pyramid(arr: NDArray[np.generic], smallest: int) -> list[NDArray[np.generic]]:
+    """The image and its exact halvings (area averages), down to a longer side of ``smallest``.
+
+    Level k's pixel covers exactly ``2**k`` photo pixels each way: an odd side
+    loses its last pixel before halving, which keeps OpenCV on its fast path
+    and the geometry exact.
+    """
+    import cv2
+
+    if arr.dtype not in (np.uint8, np.uint16, np.float32, np.float64):
+        arr = arr.astype(np.float32)
+    levels = [np.ascontiguousarray(arr)]
+    while max(levels[-1].shape[:2]) >= 2 * smallest and min(levels[-1].shape[:2]) >= 16:
+        top = levels[-1]
+        half = (top.shape[1] // 2, top.shape[0] // 2)
+        even = np.ascontiguousarray(top[: 2 * half[1], : 2 * half[0]])
+        levels.append(
+            cv2.resize(even, half, interpolation=cv2.INTER_AREA).reshape(half[1], half[0], *top.shape[2:])
+        )
+    return levels
+
+
+def _at_scale(
+    levels: list[NDArray[np.generic]], scale: float
+) -> tuple[NDArray[np.generic], tuple[float, float]]:
+    """The photo reduced about ``scale`` times, and the photo pixels it covers (rows, cols).
+
+    The deepest pyramid level not coarser than ``scale`` is resized once more:
+    by area averaging, or bilinearly when the step is small enough that no
+    detail is lost between samples.
+    """
+    import cv2
+
+    k = min(len(levels) - 1, max(0, math.floor(math.log2(max(scale, 1.0)) + 1e-9)))
+    level = levels[k]
+    covered = (level.shape[0] * 2.0**k, level.shape[1] * 2.0**k)
+    size = (max(1, round(covered[1] / scale)), max(1, round(covered[0] / scale)))
+    if (level.shape[1], level.shape[0]) == size:
+        return level, covered
+    step = max(level.shape[1] / size[0], level.shape[0] / size[1])
+    method = cv2.INTER_LINEAR if step < 1.5 else cv2.INTER_AREA
+    out = cv2.resize(level, size, interpolation=method)
+    return out.reshape(size[1], size[0], *level.shape[2:]), covered
+
+
+def _unit(arr: NDArray[np.generic], dtype: np.dtype) -> NDArray[np.float32]:
+    """Values in [0, 1] as float32: integers by their type's maximum, floats clipped."""
+    if dtype.kind in "ui":
+        return arr.astype(np.float32) * np.float32(1.0 / np.iinfo(dtype).max)
+    return np.clip(arr.astype(np.float32), 0.0, 1.0)
+
+
+@dataclass(frozen=True, eq=False)
+class _Channel:
+    """A brightness channel: how to compute it from colour or gray pixels in [0, 1].
+
+    ``direction`` and ``center`` define the chromaticity channel (a projection
+    of ``rgb / (r + g + b)``); luminance has neither. ``multiplicative`` says
+    whether lighting multiplies the channel (luminance) or cancels in it.
+    """
+
+    name: str
+    multiplicative: bool
+    direction: NDArray[np.float32] | None = None
+    center: NDArray[np.float32] | None = None
+
+    def values(self, image: NDArray[np.float32]) -> NDArray[np.float32]:
+        if image.ndim == 2:
+            return image
+        if self.direction is None:
+            return image @ _LUMA
+        total = image.sum(axis=2)
+        # Chromaticity is noise where there is no light; the darkest pixels get the mean.
+        projected = (image @ self.direction - self.center @ self.direction * total) / np.maximum(total, 0.06)
+        return np.where(total > 0.06, projected, 0.0).astype(np.float32)
+
+
+def _channels(small: NDArray[np.float32]) -> Iterator[_Channel]:
+    """Candidate channels, learnt from the detection image (module docstring, step 2).
+
+    A generator: the chromaticity is only worked out if luminance finds no rock.
+    """
+    yield _Channel("luminance", True)
+    if small.ndim == 2:
+        return
+    total = small.sum(axis=2)
+    lit = total > 0.06
+    if lit.sum() < 16:
+        return
+    chroma = small[lit] / total[lit, None]
+    center = chroma.mean(axis=0)
+    values, vectors = np.linalg.eigh(np.cov(chroma.T))
+    # A chromaticity that barely varies (a gray or evenly tinted photo) adds nothing.
+    if values[-1] > 1e-5:
+        direction = vectors[:, -1].astype(np.float32)
+        yield _Channel("chromaticity", False, direction, center.astype(np.float32))

@@ -1,0 +1,315 @@
+"""Outlines at working size: each detected rock thresholded at its own level,
+scored by the evidence along its outline, and its holes filled.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+
+import numpy as np
+from numpy.typing import NDArray
+
+from rockscan.core.errors import NoRockFoundError
+from rockscan.core.segment.channels import _Channel, _unit
+from rockscan.core.segment.detect import _Detection, _flatten, _smooth, _window_of
+from rockscan.core.segment.score import outline_evidence, outline_score
+from rockscan.core.segment.types import RockMask, Segmentation, SegmentConfig
+
+#: Smoothing of the hue before it joins the brightness, in working pixels.
+_HUE_SIGMA = 3.0
+#: Red and blue less luminance (BT.601), the two hue coordinates.
+_HUE_MATRIX = np.array([[0.701, -0.587, -0.114], [-0.299, -0.587, 0.886]], np.float32)
+
+#: Pixel value (photo in [0, 1]) from which a pixel counts as clipped by the sensor.
+_CEILING = 0.98
+
+
+def _outline_rock(
+    work: NDArray[np.generic],
+    dtype: np.dtype,
+    region: NDArray[np.bool_],
+    territory: NDArray[np.bool_],
+    up: tuple[float, float],
+    detection: _Detection,
+    config: SegmentConfig,
+) -> RockMask | None:
+    """Outline one detected rock at working size (module docstring, step 6)."""
+    rows, cols = work.shape[:2]
+    # Working pixel -> nearest detection pixel, along each axis.
+    to_row = np.minimum(((np.arange(rows) + 0.5) / up[0]).astype(np.int64), region.shape[0] - 1)
+    to_col = np.minimum(((np.arange(cols) + 0.5) / up[1]).astype(np.int64), region.shape[1] - 1)
+    ys, xs = np.nonzero(region)
+    r0, r1 = math.floor(ys.min() * up[0]), min(rows, math.ceil((ys.max() + 1) * up[0]))
+    c0, c1 = math.floor(xs.min() * up[1]), min(cols, math.ceil((xs.max() + 1) * up[1]))
+    detected = region[to_row[r0:r1, None], to_col[None, c0:c1]]
+    estimate, origin = detected, (r0, c0)
+    rock, reaches_edge = None, False
+    # A rock only partly detected reaches its window's edge: look again in a
+    # window around what was found. What still reaches it after three looks,
+    # or has grown past four times the detection, has flooded the ground.
+    for _ in range(3):
+        rock, reaches_edge = _threshold_rock(
+            work, dtype, estimate, origin, territory, (to_row, to_col), up, detection, config
+        )
+        if rock is None or not reaches_edge:
+            break
+        estimate, origin = rock.mask, rock.origin_rowcol
+    if rock is None or reaches_edge or rock.area > 4.0 * float(detected.sum()):
+        rock = _fallback(detected, (r0, c0))
+    if rock is None:
+        return None
+    return _scored(work, dtype, rock, (to_row, to_col), up, detection, config)
+
+
+def _scored(
+    work: NDArray[np.generic],
+    dtype: np.dtype,
+    rock: RockMask,
+    to_detect: tuple[NDArray[np.int64], NDArray[np.int64]],
+    up: tuple[float, float],
+    detection: _Detection,
+    config: SegmentConfig,
+) -> RockMask:
+    """The rock with its segmentation score (rockscan.core.segment.score).
+
+    The evidence is read on the flattened channel the rock was found in,
+    as a level from the ground's (0, the median of a ring around the
+    outline) to the rock's (1, the median inside).
+    """
+    import cv2
+
+    rows, cols = work.shape[:2]
+    o0, o1 = rock.origin_rowcol
+    h, w = rock.mask.shape
+    radius = math.sqrt(max(rock.area, 1) / math.pi)
+    pad = round(max(6.0, 0.4 * radius))
+    r0, r1 = max(0, o0 - pad), min(rows, o0 + h + pad)
+    c0, c1 = max(0, o1 - pad), min(cols, o1 + w + pad)
+    mask = np.zeros((r1 - r0, c1 - c0), bool)
+    mask[o0 - r0 : o0 - r0 + h, o1 - c0 : o1 - c0 + w] = rock.mask
+    window = _unit(np.ascontiguousarray(work[r0:r1, c0:c1]), dtype)
+    values = _smooth(detection.channel.values(window), 1, config.smooth_sigma)
+    lighting = _window_of(detection.lighting, up, (r0, r1, c0, c1))
+    flat = _flatten(values, lighting, detection.channel.multiplicative)
+    mask8 = mask.astype(np.uint8)
+    inside = cv2.distanceTransform(mask8, cv2.DIST_L2, 3) > max(1.0, 0.15 * radius)
+    core = flat[inside] if inside.sum() >= 4 else flat[mask]
+    outside = cv2.distanceTransform(1 - mask8, cv2.DIST_L2, 3)
+    ring = (outside > max(3.0, 0.12 * radius)) & (outside <= max(6.0, 0.35 * radius))
+    ground = float(np.median(flat[ring])) if ring.sum() >= 8 else 0.0
+    step = float(np.median(core)) - ground
+    if not math.isfinite(step) or abs(step) < 1e-6:
+        return dataclasses.replace(rock, score=0.0, evidence=())
+    sides = (r0 == 0, r1 == rows, c0 == 0, c1 == cols)
+    level = ((flat - np.float32(ground)) / np.float32(step)).astype(np.float32)
+    evidence = outline_evidence(level, mask, sides)
+    return dataclasses.replace(
+        rock, score=outline_score(evidence), evidence=tuple(float(v) for v in evidence.as_array())
+    )
+
+
+def _threshold_rock(
+    work: NDArray[np.generic],
+    dtype: np.dtype,
+    estimate: NDArray[np.bool_],
+    origin: tuple[int, int],
+    territory: NDArray[np.bool_],
+    to_detect: tuple[NDArray[np.int64], NDArray[np.int64]],
+    up: tuple[float, float],
+    detection: _Detection,
+    config: SegmentConfig,
+) -> tuple[RockMask | None, bool]:
+    """Threshold half-way between rock and ground in a window around an estimate of the rock.
+
+    Returns the rock and whether it reaches an edge of the window that is not
+    the frame's.
+    """
+    import cv2
+
+    rows, cols = work.shape[:2]
+    ys, xs = np.nonzero(estimate)
+    if ys.size == 0:
+        return None, False
+    radius = math.sqrt(ys.size / math.pi)
+    pad = round(max(6.0, 0.5 * radius))
+    r0 = max(0, origin[0] + int(ys.min()) - pad)
+    r1 = min(rows, origin[0] + int(ys.max()) + 1 + pad)
+    c0 = max(0, origin[1] + int(xs.min()) - pad)
+    c1 = min(cols, origin[1] + int(xs.max()) + 1 + pad)
+    detected = np.zeros((r1 - r0, c1 - c0), bool)
+    detected[ys + origin[0] - r0, xs + origin[1] - c0] = True
+    to_row, to_col = to_detect
+    others = detection.outliers[to_row[r0:r1, None], to_col[None, c0:c1]] & ~detected
+
+    window = _unit(np.ascontiguousarray(work[r0:r1, c0:c1]), dtype)
+    values = _smooth(detection.channel.values(window), 1, config.smooth_sigma)
+    lighting = _window_of(detection.lighting, up, (r0, r1, c0, c1))
+    flat = _flatten(values, lighting, detection.channel.multiplicative)
+
+    # Distances to the detection's edge, inside and outside, give the core and
+    # the ring without large structuring elements.
+    det8 = detected.astype(np.uint8)
+    inside_dist = cv2.distanceTransform(det8, cv2.DIST_L2, 3)
+    outside_dist = cv2.distanceTransform(1 - det8, cv2.DIST_L2, 3)
+    margin = max(2.0, 0.15 * radius)
+    core = inside_dist > margin
+    if core.sum() < 4:
+        core = detected
+    ring = (outside_dist > margin) & (outside_dist <= margin + max(3.0, 0.3 * radius))
+    ring &= cv2.dilate(others.astype(np.uint8), np.ones((5, 5), np.uint8)) == 0
+    if ring.sum() < 8:
+        ring = outside_dist > margin
+    if ring.sum() < 8:
+        return _fallback(detected, (r0, c0)), False
+    level = _level(window, flat, lighting, core, ring, detection.channel)
+    if level is None:
+        return _fallback(detected, (r0, c0)), False
+    if detection.channel.multiplicative and detection.polarity == "light":
+        # A sensor's ceiling hides how much brighter than its ground a light
+        # rock is; where it clips, the rock is at least at its own level.
+        ceiling = (window.max(axis=2) if window.ndim == 3 else window) >= _CEILING
+        # Clipped ground (a glaring corner) stays ground: only what already rises is lifted.
+        ceiling &= level > 0.25
+        level[ceiling] = np.maximum(level[ceiling], 1.0)
+    # A touching neighbour beyond half-way is not this rock: keep to its territory.
+    own = territory[to_row[r0:r1, None], to_col[None, c0:c1]]
+    count, labels = cv2.connectedComponents(((level > 0.5) & own).astype(np.uint8), connectivity=4)
+    overlap = np.bincount(labels[core], minlength=count)
+    overlap[0] = 0
+    if overlap.max() == 0:
+        return _fallback(detected, (r0, c0)), False
+    mask = _fill_holes(labels == int(np.argmax(overlap)))
+    if mask.sum() < 0.25 * detected.sum():
+        return _fallback(detected, (r0, c0)), False
+    coverage = np.clip(level, 0.0, 1.0).astype(np.float32)
+    # Only this rock's own edge: filled holes count as rock, anything beyond
+    # a pixel of its mask as ground.
+    coverage[mask & (coverage < 0.5)] = 1.0
+    coverage[~(cv2.dilate(mask.astype(np.uint8), _disk(1)) > 0)] = 0.0
+    coverage[~mask & (coverage >= 0.5)] = 0.49
+    touching = (
+        (r0 > 0 and mask[0].any())
+        or (r1 < rows and mask[-1].any())
+        or (c0 > 0 and mask[:, 0].any())
+        or (c1 < cols and mask[:, -1].any())
+    )
+    return RockMask(mask=mask, coverage=coverage, origin_rowcol=(r0, c0)), bool(touching)
+
+
+def _level(
+    window: NDArray[np.float32],
+    flat: NDArray[np.float32],
+    lighting: NDArray[np.float32],
+    core: NDArray[np.bool_],
+    ring: NDArray[np.bool_],
+    channel: _Channel,
+) -> NDArray[np.float32] | None:
+    """Where each pixel lies from the ground's level (0) to the rock's (1).
+
+    A gray photo is measured by its flattened brightness. In colour, rock and
+    ground are told apart along Fisher's discriminant of the flattened
+    brightness and the smoothed hue (two colour differences), from the core's
+    and the ring's means and pooled covariance: a rock's hue then counts as
+    well as its brightness, and ground texture, which mostly varies the
+    ground's brightness, counts less; brightness keeps at least half of the
+    step between the two. Either way the levels are medians over the core and
+    the ring.
+    """
+    import cv2
+
+    core_at, ring_at = _sample_at(core), _sample_at(ring)
+    projected = flat
+    flat_values = flat.ravel()
+    rock_lum, ground_lum = flat_values[core_at], flat_values[ring_at]
+    if window.ndim == 3 and channel.name == "luminance":
+        inverse = 1.0 / (np.maximum(lighting, 0.0) + np.float32(0.05))
+        # Red and blue less luminance, flattened like the brightness. Hue varies
+        # slowly on a rock and JPEG stores it in coarse blocks: the outline's
+        # position is left to the brightness, whose edge is sharp.
+        hue = cv2.transform(window, _HUE_MATRIX) * inverse[..., None]
+        hue = cv2.GaussianBlur(hue, (0, 0), _HUE_SIGMA).reshape(-1, 2)
+        features_r = np.column_stack([rock_lum, hue[core_at]]).astype(np.float64)
+        features_g = np.column_stack([ground_lum, hue[ring_at]]).astype(np.float64)
+        if features_r.shape[0] > 8 and features_g.shape[0] > 8:
+            pooled = 0.5 * (np.cov(features_r.T) + np.cov(features_g.T))
+            pooled[np.diag_indices(3)] += 1e-6 * max(float(np.trace(pooled)), 1e-9)
+            difference = features_r.mean(axis=0) - features_g.mean(axis=0)
+            weights = np.linalg.solve(pooled, difference)
+            # Brightness carries at least half of the step, so that the
+            # outline stays at its sharp edge (hue is smoothed, and on a black
+            # ground it would otherwise take over).
+            from_brightness, from_hue = weights[0] * difference[0], weights[1:] @ difference[1:]
+            if from_hue > from_brightness > 0:
+                weights[1:] *= from_brightness / from_hue
+            elif from_brightness <= 0:
+                weights = np.array([1.0, 0.0, 0.0])
+            weights = weights.astype(np.float32)
+            projected = flat * weights[0] + (hue @ weights[1:]).reshape(flat.shape)
+    values = projected.ravel()
+    rock_level = float(np.median(values[core_at]))
+    ground_level = float(np.median(values[ring_at]))
+    step = rock_level - ground_level
+    if not math.isfinite(step) or abs(step) < 1e-9:
+        return None
+    return ((projected - np.float32(ground_level)) / np.float32(step)).astype(np.float32)
+
+
+def _sample_at(mask: NDArray[np.bool_], limit: int = 4096) -> NDArray[np.int64]:
+    """Flat indices of at most about ``limit`` evenly spaced pixels of a mask:
+    the statistics of a window need no more."""
+    at = np.flatnonzero(mask)
+    return at[:: max(1, at.size // limit)]
+
+
+def _disk(radius: int) -> NDArray[np.uint8]:
+    import cv2
+
+    return cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * radius + 1, 2 * radius + 1))
+
+
+def _fallback(detected: NDArray[np.bool_], origin: tuple[int, int]) -> RockMask | None:
+    mask = _fill_holes(detected)
+    if not mask.any():
+        return None
+    return RockMask(mask=mask, coverage=mask.astype(np.float32), origin_rowcol=origin)
+
+
+def _fill_holes(mask: NDArray[np.bool_]) -> NDArray[np.bool_]:
+    """The mask with every enclosed hole filled (flood fill of the ground from outside)."""
+    import cv2
+
+    padded = np.zeros((mask.shape[0] + 2, mask.shape[1] + 2), np.uint8)
+    padded[1:-1, 1:-1] = mask
+    flood = np.zeros((padded.shape[0] + 2, padded.shape[1] + 2), np.uint8)
+    cv2.floodFill(padded, flood, (0, 0), 2)
+    return padded[1:-1, 1:-1] != 2
+
+
+def _from_alpha(
+    alpha: NDArray[np.float32], scale_rowcol: tuple[float, float], config: SegmentConfig, all_rocks: bool
+) -> Segmentation:
+    """Rocks cut out by an alpha channel: its opaque regions, alpha as coverage."""
+    import cv2
+
+    rows, cols = alpha.shape
+    min_area = max(12.0, config.min_area_fraction * rows * cols)
+    _, labels, stats, _ = cv2.connectedComponentsWithStats((alpha >= 0.5).astype(np.uint8), connectivity=8)
+    areas = stats[1:, cv2.CC_STAT_AREA]
+    order = [int(i) for i in np.argsort(-areas, kind="stable") if areas[i] >= min_area]
+    if not order:
+        raise NoRockFoundError("no rock found: the alpha channel cuts out nothing large enough")
+    if all_rocks:
+        order = [i for i in order if areas[i] >= config.min_relative_area * areas[order[0]]]
+    else:
+        order = order[:1]
+    rocks, out = [], np.zeros((rows, cols), np.int32)
+    for index, i in enumerate(order, start=1):
+        mask = _fill_holes(labels == i + 1)
+        coverage = np.where(mask, np.maximum(alpha, 0.5), np.minimum(alpha, 0.49)).astype(np.float32)
+        coverage[~(cv2.dilate(mask.astype(np.uint8), _disk(1)) > 0)] = 0.0
+        rocks.append(RockMask(mask=mask, coverage=coverage, origin_rowcol=(0, 0)))
+        out[mask & (out == 0)] = index
+    return Segmentation(
+        labels=out, rocks=tuple(rocks), scale_rowcol=scale_rowcol, polarity="light", channel="alpha"
+    )
