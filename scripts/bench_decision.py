@@ -73,7 +73,7 @@ KINDS = ("random-2", "random-5", "random-12", "random-50", "photo-blobs", "defau
 DEV_SEED = 1000
 HELD_OUT_SEED = 5000
 N_ANGLES = 360
-PAPER = MatchConfig(metric="eigenspace", angle_metric="eigenspace")
+PAPER = MatchConfig.paper()
 MATCHED_FILTER = MatchConfig(metric="face", angle_metric="face")
 
 

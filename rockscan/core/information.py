@@ -329,10 +329,7 @@ def information_face_cartesian(radii: ArrayLike, config: FaceConfig) -> NDArray[
     rho, theta = _cartesian_polar(config)
     section = np.minimum((rho / config.resolution).astype(np.int64), config.n_sections - 1)
     edges = section_edges(config)
-    position = np.mod(theta, 2.0 * np.pi) / (2.0 * np.pi) * config.n_angles
-    lo = np.floor(position).astype(np.int64) % config.n_angles
-    frac = position - np.floor(position)
-    sample = radii[..., lo] * (1.0 - frac) + radii[..., (lo + 1) % config.n_angles] * frac
+    sample = _at_angles(radii, theta)
     q = ndtr((edges[section + 1] - sample) / config.sigma) - ndtr((edges[section] - sample) / config.sigma)
     return reference_information(config) * q
 
@@ -352,11 +349,18 @@ def _reference_radius(config: FaceConfig, theta: NDArray[np.float64]) -> NDArray
         assert config.reference is not None
         grid = 2.0 * np.pi * np.arange(config.n_angles) / config.n_angles
         ref = normalize_radii(config.reference.radii(grid))
-        position = np.mod(theta, 2.0 * np.pi) / (2.0 * np.pi) * config.n_angles
-        lo = np.floor(position).astype(np.int64) % config.n_angles
-        frac = position - np.floor(position)
-        return ref[lo] * (1.0 - frac) + ref[(lo + 1) % config.n_angles] * frac
+        return _at_angles(ref, theta)
     return np.full(np.shape(theta), REFERENCE_RADIUS)
+
+
+def _at_angles(radii: NDArray[np.float64], theta: ArrayLike) -> NDArray[np.float64]:
+    """Radii sampled at the matcher's angles, read at any angles ``theta`` (radians) by
+    periodic linear interpolation; ``radii`` may hold several outlines (last axis)."""
+    n = radii.shape[-1]
+    position = np.mod(theta, 2.0 * np.pi) / (2.0 * np.pi) * n
+    lo = np.floor(position).astype(np.int64) % n
+    frac = position - np.floor(position)
+    return radii[..., lo] * (1.0 - frac) + radii[..., (lo + 1) % n] * frac
 
 
 def _check_radii(radii: ArrayLike, n_angles: int | None = None) -> NDArray[np.float64]:

@@ -31,6 +31,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from rockscan.core.errors import LibraryError
+from rockscan.core.errors import first_line as _first_line
 
 __all__ = ["MAX_ARCHIVE_BYTES", "SafeNpz"]
 
@@ -234,8 +235,3 @@ def _read_header(member: IO[bytes]) -> tuple[np.dtype[Any], tuple[int, ...], boo
     ):
         raise _HeaderError(f"shape {shape!r} is not a shape")
     return dtype, shape, fortran, len(magic) + len(size_field) + length
-
-
-def _first_line(exc: BaseException) -> str:
-    text = str(exc).strip().splitlines()
-    return text[0] if text else type(exc).__name__
