@@ -43,9 +43,8 @@ def library_hash(library: Library) -> str:
     """A content hash of a library: its shapes, not the file they came in.
 
     SHA-256 of the names, interests, symmetries, face settings, basis size and
-    calibration tolerance (canonical JSON), and the radii and calibrated cutoffs (at the
-    tolerance and clean)
-    as little-endian float64 rounded to 10 decimals. The basis itself (a BLAS
+    calibration tolerance (canonical JSON), and the radii and both calibrated cutoffs
+    (at the tolerance and clean) as little-endian float64 rounded to 10 decimals. The basis itself (a BLAS
     result) is left out, so the hash is the same in every process and at every
     thread count; the same spec built twice, or saved and loaded, hashes the same.
 
