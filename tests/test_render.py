@@ -237,6 +237,7 @@ def test_polarity_and_shadow():
         ({"noise": -0.1}, "noise must be a non-negative number"),
         ({"blur": float("nan")}, "blur must be a non-negative number"),
         ({"shadow": 1.5}, "shadow must be at most 1"),
+        ({"contrast": 5.0}, "contrast must be from 0 to 1"),
         ({"jpeg_quality": 0}, "jpeg_quality must be between 1 and 100"),
         ({"bit_depth": 12}, "bit_depth must be 8 or 16"),
         ({"bit_depth": 16, "jpeg_quality": 90}, "JPEG photos are 8 bits"),

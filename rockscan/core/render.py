@@ -136,6 +136,11 @@ class RenderConfig:
             )
         if self.shadow > 1 or self.gradient >= 2:
             raise ParameterError("shadow must be at most 1 and gradient below 2")
+        if self.contrast > 1:
+            # Brightness runs 0 to 1: a larger difference would only clip the rock to white or black.
+            raise ParameterError(
+                f"contrast must be from 0 to 1 (the brightness difference), got {self.contrast}"
+            )
         if self.jpeg_quality is not None and (
             isinstance(self.jpeg_quality, bool)
             or not isinstance(self.jpeg_quality, (int, np.integer))
