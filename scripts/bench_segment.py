@@ -190,25 +190,27 @@ def as_method(segment_fn: Callable) -> Method:
     ``segment_fn`` returns a ``rockscan.core.segment.Segmentation`` (anything with
     ``rocks`` and ``scale_rowcol``) or a label image at photo resolution
     (1 = the main rock); it raises ``NoRockFoundError`` or returns no label
-    when it finds nothing.
+    when it finds nothing. The method returns the labels and the main
+    rock's segmentation score (NaN for a label image or nothing found).
     """
 
-    def method(pixels: NDArray, kind: str) -> NDArray[np.int32]:
+    def method(pixels: NDArray, kind: str) -> tuple[NDArray[np.int32], float]:
         try:
             out = segment_fn(pixels, all_rocks=kind == "all")
         except NoRockFoundError:
-            return np.zeros(pixels.shape[:2], np.int32)
+            return np.zeros(pixels.shape[:2], np.int32), float("nan")
         if hasattr(out, "rocks") and hasattr(out, "scale_rowcol"):
-            return segmentation_labels(out, pixels.shape[:2])
+            score = float(out.rocks[0].score) if out.rocks else float("nan")
+            return segmentation_labels(out, pixels.shape[:2]), score
         labels = np.asarray(out)
         if labels.shape != pixels.shape[:2]:
             raise ValueError(f"labels of shape {labels.shape} for a photo of shape {pixels.shape[:2]}")
-        return labels.astype(np.int32)
+        return labels.astype(np.int32), float("nan")
 
     return method
 
 
-def _rockscan(pixels: NDArray, kind: str) -> NDArray[np.int32]:
+def _rockscan(pixels: NDArray, kind: str) -> tuple[NDArray[np.int32], float]:
     from rockscan.core.segment import segment
 
     return as_method(segment)(pixels, kind)
@@ -428,15 +430,18 @@ def _score_one(task: tuple[str, str, int]) -> list[dict]:
         try:
             found = method(pixels, kind)
             error = ""
+            score = float("nan")
+            if isinstance(found, tuple):
+                found, score = found
         except RockscanError as exc:  # a photo the method refuses
-            found, error = np.zeros(truth.shape, np.int32), str(exc)
+            found, error, score = np.zeros(truth.shape, np.int32), str(exc), float("nan")
         seconds = time.perf_counter() - start
         record = {"method": name, "part": part, "condition": condition, "index": index, "kind": kind}
         if kind == "all":
             record.update(asdict(score_crowd(found, truth)))
         else:
             record.update(asdict(score_rock(found == 1, truth == 1)))
-        record.update(seconds=seconds, error=error)
+        record.update(seconds=seconds, error=error, score=score)
         records.append(record)
     return records
 
@@ -594,6 +599,30 @@ def _pct(x: float) -> str:
     return f"{100 * x:.1f}%"
 
 
+def score_auroc(records: list[dict], part: str, method: str = "rockscan") -> tuple[float, int, int]:
+    """AUROC of the segmentation score: outlines of IoU >= 0.9 against those below 0.8.
+
+    Over a part's photos of one rock and crops (outlines in between are
+    neither right nor clearly wrong). Returns (AUROC, n right, n wrong);
+    NaN when either side is empty.
+    """
+    rs = [
+        r
+        for r in records
+        if r["part"] == part
+        and r["method"] == method
+        and r["kind"] != "all"
+        and np.isfinite(r.get("score", np.nan))
+    ]
+    good = np.array([r["score"] for r in rs if r["iou"] >= IOU_GOOD])
+    bad = np.array([r["score"] for r in rs if r["iou"] < 0.8])
+    if not good.size or not bad.size:
+        return float("nan"), good.size, bad.size
+    # Mann-Whitney: the chance a right outline scores above a wrong one, ties half.
+    above = (good[:, None] > bad[None, :]).mean() + 0.5 * (good[:, None] == bad[None, :]).mean()
+    return float(above), good.size, bad.size
+
+
 def format_table(rows: list[dict]) -> str:
     """The results as one markdown table."""
     lines = [
@@ -647,7 +676,7 @@ def write_figures(directory: Path, part: str) -> list[Path]:
     for name, condition in (("segment-hard.png", "combined"), ("segment-crowded.png", "crowded")):
         seed = scenes.part_seeds(part, 1)[0]
         scene = scenes.make_scene(condition, seed)
-        found = _rockscan(scene.image, scene.kind)
+        found, _ = _rockscan(scene.image, scene.kind)
         fig, ax = plt.subplots(figsize=(8, 8 * scene.image.shape[0] / scene.image.shape[1]), dpi=100)
         ax.imshow(scene.image, cmap="gray", vmin=0, vmax=255)
         for labels, color, width in ((scene.labels, "lime", 2.5), (found, "red", 1.2)):
@@ -713,6 +742,10 @@ def main(argv: list[str] | None = None) -> int:
         return 2
     rows = summarize(records)
     print(format_table(rows))
+    for part in parts:
+        auroc, n_good, n_bad = score_auroc(records, part)
+        if n_good or n_bad:
+            print(f"{part}: segmentation_score AUROC {auroc:.3f} (IoU >= 0.9: {n_good}, IoU < 0.8: {n_bad})")
     if args.json:
         args.json.write_text(json.dumps(_finite({"rows": rows, "records": records}), indent=1))
     if args.figures:

@@ -135,7 +135,7 @@ def test_all_finds_the_24_reference_coins_one_to_one():
     """--all on coins(): every coin of the hand-checked reference, one region each."""
     bench = _bench()
     truth = bench.coins_reference()
-    found = bench.as_method(segment)(data.coins(), "all")
+    found, _ = bench.as_method(segment)(data.coins(), "all")
     crowd = bench.score_crowd(found, truth)
     assert (crowd.n_true, crowd.n_found, crowd.matched, crowd.merges, crowd.splits) == (24, 24, 24, 0, 0)
 

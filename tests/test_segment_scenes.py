@@ -27,7 +27,7 @@ N_PHOTOS = 1
 
 def judged(condition: str, index: int):
     pixels, truth, kind = bench_segment.photo("dev", condition, index)
-    found = bench_segment.as_method(segment)(pixels, kind)
+    found, _ = bench_segment.as_method(segment)(pixels, kind)
     if kind == "all":
         return bench_segment.score_crowd(found, truth)
     return bench_segment.score_rock(found == 1, truth == 1)

@@ -92,6 +92,7 @@ from numpy.typing import NDArray
 from rockscan.core._threads import one_blas_thread
 from rockscan.core.errors import NoRockFoundError, ParameterError
 from rockscan.core.segment.channels import _LUMA, _at_scale, _channels, _check_pixels, _pyramid, _unit
+from rockscan.core.segment.choose import choose
 from rockscan.core.segment.detect import _detect, _Detection, _luminance_polarity
 from rockscan.core.segment.split import split_necks, territories
 from rockscan.core.segment.trace import _disk, _fill_holes, _from_alpha, _outline_rock, _scored
@@ -153,6 +154,49 @@ def segment(
     docstring.
     """
     config = config or SegmentConfig()
+    pool = _candidate_pool(pixels, config, all_rocks=all_rocks, fast=True)
+    if isinstance(pool, Segmentation):
+        return pool
+    candidates = pool.candidates
+    # The refinements (GrabCut) cost most: they are made only when the choice
+    # among the detected candidates is not already sure.
+    if len(candidates) >= 2:
+        index, probability = choose(*zip(*candidates, strict=True))
+        if probability >= FAST_PROBABILITY:
+            return candidates[index][0]
+    candidates = candidates + pool.refined()
+    index, _ = choose(*zip(*candidates, strict=True))
+    return candidates[index][0]
+
+
+#: The choice model's probability from which the detected candidates' choice stands unrefined.
+FAST_PROBABILITY = 0.9
+
+
+@dataclass(frozen=True, eq=False)
+class _Pool:
+    """Candidate main rocks with their detection scores, and how to refine the best of them."""
+
+    candidates: list[tuple[Segmentation, float]]
+    outline: _Outliner
+    incumbent: tuple[Segmentation, float]
+
+    def refined(self) -> list[tuple[Segmentation, float]]:
+        """GrabCut and the centre's Otsu class, started from the best-supported candidate."""
+        found, detection_score = self.incumbent
+        return [(refined, detection_score) for refined in self.outline.refined(found)]
+
+
+def _candidate_pool(
+    pixels: NDArray[np.generic], config: SegmentConfig, *, all_rocks: bool = False, fast: bool = True
+) -> Segmentation | _Pool:
+    """Candidate segmentations of the main rock with their detection scores, or a finished one.
+
+    A finished segmentation comes back for an alpha channel, for
+    ``all_rocks``, and (with ``fast``) for an easy photo whose first outline
+    the photo clearly supports and whose detection had no rival. Otherwise
+    the candidates of each channel's detection, and their refinements on demand.
+    """
     arr = _check_pixels(pixels)
     rows, cols = arr.shape[:2]
     color = arr[..., :3] if arr.ndim == 3 else arr
@@ -173,6 +217,7 @@ def segment(
         levels, arr.dtype, small.shape[:2], detect_covered, detect_scale, largest_scale, config
     )
     best: tuple[float, Segmentation, float] | None = None
+    pool: list[tuple[Segmentation, float]] = []
     for channel in _channels(small):
         detection = _detect(channel.values(small), channel, config, all_rocks)
         if detection is None:
@@ -186,21 +231,19 @@ def segment(
             found = outline(candidate)
             if found is None:
                 continue
+            pool.append((found, candidate.score))
             key = _choice_key(found, candidate.score)
             if best is None or key > best[0]:
                 best = (key, found, candidate.score)
             # Fast path: an outline the photo clearly supports, of a rock that
             # stood out clearly from every other region, needs no rival.
-            if best[1].rocks[0].score >= FAST_SCORE and _unrivalled(detection):
+            if fast and best[1].rocks[0].score >= FAST_SCORE and _unrivalled(detection):
                 return best[1]
     if best is None:
         raise NoRockFoundError("no rock found: nothing stands out from the ground")
+    # The refinements start from the outline the photo supports best.
     _, incumbent, detection_score = best
-    for found in outline.refined(incumbent):
-        key = _choice_key(found, detection_score)
-        if key > best[0]:
-            best = (key, found, detection_score)
-    return best[1]
+    return _Pool(pool, outline, (incumbent, detection_score))
 
 
 #: A main rock's segmentation score from which no other candidate is tried (the fast path).
@@ -304,14 +347,22 @@ class _Outliner:
         to_col = np.minimum(
             ((np.arange(work.shape[1]) + 0.5) / up[1]).astype(np.int64), self.small_shape[1] - 1
         )
-        for mask in (_grabcut(work, self.dtype, rock), _centre_part(work, self.dtype)):
+        masks = [_grabcut(work, self.dtype, rock), _centre_part(work, self.dtype)]
+        if self.config.polarity == "auto":
+            # A box's GrabCut knows no polarity: it stays out when the user set one.
+            masks += [_grabcut_box(work, self.dtype, box) for box in _boxes(rock, work.shape[:2])]
+        for mask in masks:
             if mask is None or not mask.any():
                 continue
             candidate = RockMask(mask=mask, coverage=mask.astype(np.float32), origin_rowcol=(0, 0))
             candidate = _cropped(
                 _scored(work, self.dtype, candidate, (to_row, to_col), up, detection, self.config)
             )
-            yield _assemble([candidate], work.shape[:2], found.scale_rowcol, found.polarity, found.channel)
+            refined = _assemble(
+                [candidate], work.shape[:2], found.scale_rowcol, found.polarity, found.channel
+            )
+            self.works[id(refined)] = (work, up, detection)
+            yield refined
 
 
 def _assemble(
@@ -391,6 +442,78 @@ def _grabcut(work: NDArray[np.generic], dtype: np.dtype, rock: RockMask) -> NDAr
     out = np.zeros((rows, cols), bool)
     out[R0:R1, C0:C1] = _fill_holes(labels == int(np.argmax(overlap)))
     return out
+
+
+def _boxes(rock: RockMask, shape: tuple[int, int]) -> list[tuple[int, int, int, int]]:
+    """Boxes a rock may lie in: around the outline, widened on every side, and most of the frame."""
+    rows, cols = shape
+    r0, c0 = rock.origin_rowcol
+    h, w = rock.mask.shape
+    boxes = []
+    for grow in _BOX_GROW:
+        g = round(grow * max(h, w))
+        boxes.append((max(0, r0 - g), min(rows, r0 + h + g), max(0, c0 - g), min(cols, c0 + w + g)))
+    mr, mc = round(0.08 * rows), round(0.08 * cols)
+    boxes.append((mr, rows - mr, mc, cols - mc))
+    return boxes
+
+
+#: How far the boxes round an outline reach beyond it, in units of its longer side.
+_BOX_GROW = (0.25, 0.6)
+
+
+def _grabcut_box(
+    work: NDArray[np.generic], dtype: np.dtype, box: tuple[int, int, int, int]
+) -> NDArray[np.bool_] | None:
+    """OpenCV's GrabCut from a box (outside it ground, inside undecided).
+
+    It runs on the box and a margin of ground round it, reduced to at most
+    ``_BOX_SIZE`` pixels: GrabCut's cost grows with the pixels it cuts, and
+    the colour models need no more.
+    """
+    import cv2
+
+    rows, cols = work.shape[:2]
+    r0, r1, c0, c1 = box
+    mr, mc = round(_BOX_MARGIN * (r1 - r0)), round(_BOX_MARGIN * (c1 - c0))
+    R0, R1, C0, C1 = max(0, r0 - mr), min(rows, r1 + mr), max(0, c0 - mc), min(cols, c1 + mc)
+    image = _unit(np.ascontiguousarray(work[R0:R1, C0:C1]), dtype)
+    if image.ndim == 2:
+        image = np.repeat(image[..., None], 3, axis=2)
+    factor = min(1.0, _BOX_SIZE / max(R1 - R0, C1 - C0))
+    h, w = max(8, round((R1 - R0) * factor)), max(8, round((C1 - C0) * factor))
+    small = cv2.resize((image * 255).astype(np.uint8), (w, h), interpolation=cv2.INTER_AREA)
+    fy, fx = h / (R1 - R0), w / (C1 - C0)
+    b0, b1 = max(1, round((r0 - R0) * fy)), min(h - 1, round((r1 - R0) * fy))
+    d0, d1 = max(1, round((c0 - C0) * fx)), min(w - 1, round((c1 - C0) * fx))
+    if b1 - b0 < 4 or d1 - d0 < 4:
+        return None
+    trimap = np.zeros((h, w), np.uint8)
+    bgd, fgd = np.zeros((1, 65), np.float64), np.zeros((1, 65), np.float64)
+    cv2.setRNGSeed(0)
+    try:
+        cv2.grabCut(
+            small, trimap, (d0, b0, d1 - d0, b1 - b0), bgd, fgd, _BOX_ITERATIONS, cv2.GC_INIT_WITH_RECT
+        )
+    except cv2.error:
+        return None
+    fg = ((trimap == cv2.GC_FGD) | (trimap == cv2.GC_PR_FGD)).astype(np.float32)
+    fg = cv2.resize(fg, (C1 - C0, R1 - R0), interpolation=cv2.INTER_LINEAR) >= 0.5
+    count, labels, stats, _ = cv2.connectedComponentsWithStats(fg.astype(np.uint8), connectivity=4)
+    if count < 2:
+        return None
+    biggest = 1 + int(np.argmax(stats[1:, cv2.CC_STAT_AREA]))
+    out = np.zeros((rows, cols), bool)
+    out[R0:R1, C0:C1] = _fill_holes(labels == biggest)
+    return out
+
+
+#: Longer side of the copy a box's GrabCut runs on.
+_BOX_SIZE = 160.0
+#: Ground round a box that the box's GrabCut sees, as a share of the box's sides.
+_BOX_MARGIN = 0.25
+#: A box's GrabCut rounds of colour models and cut.
+_BOX_ITERATIONS = 4
 
 
 #: GrabCut's rounds of colour models and cut.

@@ -1,0 +1,162 @@
+"""Which of several candidate outlines of the main rock is the rock.
+
+Candidates come from different cues (the hysteresis region in either
+polarity and channel, its runners-up, GrabCut from the outline and from
+boxes, the Otsu class under the frame's centre). Each is measured by what a
+person would look at:
+
+* how well the photo supports its outline (its segmentation score and the
+  evidence behind it, ``rockscan.core.segment.score``);
+* how clearly its region stood out when it was detected;
+* where it lies: distance of its centroid from the frame's centre, whether
+  it covers the centre (a photo of one rock is framed on it, a crop is
+  centred on it), and its share of the frame;
+* **consensus**: how much it agrees with the other candidates (mean
+  intersection over union with the three that overlap it most). Cues fail
+  in different ways, a shaded side here, a highlight there, and mostly
+  agree where they are right.
+
+A logistic model of these features gives each candidate the probability
+that it outlines the rock (intersection over union >= 0.9), and the most
+probable wins. The weights were fitted on the development part of the
+segmentation benchmark (``scripts/fit_segment_choice.py``). The winner's
+reported score stays its segmentation score (``score.py``), the same
+measure for every rock whether or not there was a choice to make; the
+probability, which leans on consensus, decides only whether the refinements
+are worth making.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+
+import numpy as np
+from numpy.typing import NDArray
+
+from rockscan.core.segment.types import Segmentation
+
+__all__ = ["FEATURES", "choice_features", "choice_probabilities", "choose"]
+
+#: Names of the columns of :func:`choice_features`.
+FEATURES = (
+    "logit_score",
+    "support",
+    "weak",
+    "outside",
+    "noise",
+    "frame",
+    "log_detection",
+    "centre_distance",
+    "covers_centre",
+    "log_area",
+    "consensus",
+)
+
+#: Side of the common grid candidates are compared on (they may come from
+#: working images of different sizes).
+_GRID = 96
+#: How many of the most overlapping other candidates the consensus averages.
+_CONSENSUS_OF = 3
+
+#: Logistic weights of :data:`FEATURES` and the intercept, fitted by
+#: ``scripts/fit_segment_choice.py`` on the benchmark's development part.
+WEIGHTS = np.array([0, 2.586, 0, 0, 0, -16.46, 0, -0.9552, 0, 0.1172, 8.631], dtype=np.float64)
+INTERCEPT = -9.441
+
+
+def _grid_mask(found: Segmentation) -> NDArray[np.bool_]:
+    import cv2
+
+    main = (found.labels == 1).astype(np.float32)
+    return cv2.resize(main, (_GRID, _GRID), interpolation=cv2.INTER_AREA) >= 0.5
+
+
+def _mutual_ious(candidates: Sequence[Segmentation]) -> NDArray[np.float64]:
+    """Intersection over union of every pair of main rocks, on the common grid."""
+    flat = np.array([_grid_mask(found).ravel() for found in candidates], dtype=np.float64)
+    inter = flat @ flat.T
+    area = flat.sum(axis=1)
+    union = area[:, None] + area[None, :] - inter
+    return np.divide(inter, union, out=np.zeros_like(inter), where=union > 0)
+
+
+def choice_features(candidates: Sequence[Segmentation], detection_scores: Sequence[float]) -> NDArray:
+    """The choice features of each candidate's main rock (module docstring).
+
+    Parameters
+    ----------
+    candidates : sequence of Segmentation
+        Candidate segmentations of one photo; rock 1 of each is its main rock.
+    detection_scores : sequence of float
+        How clearly each candidate's region stood out when detected.
+
+    Returns
+    -------
+    features : (n, len(FEATURES)) ndarray of float64
+    """
+    ious = _mutual_ious(candidates)
+    rows = []
+    for k, (found, detected) in enumerate(zip(candidates, detection_scores, strict=True)):
+        rock = found.rocks[0]
+        others = np.delete(ious[k], k)
+        consensus = float(np.sort(others)[-_CONSENSUS_OF:].mean()) if others.size else 0.0
+        mask = found.labels == 1
+        h, w = mask.shape
+        ys, xs = np.nonzero(mask)
+        if ys.size:
+            centre = math.hypot((ys.mean() + 0.5) / h - 0.5, (xs.mean() + 0.5) / w - 0.5)
+            share = ys.size / mask.size
+        else:
+            centre, share = 0.75, 0.0
+        score = min(max(rock.score, 1e-4), 1.0 - 1e-4)
+        # Solidity stays out: the rocks it was fitted on are blobs, and a
+        # star's arms must not count against it (the outline score weighs it).
+        evidence = list(rock.evidence[:5]) if len(rock.evidence) == 6 else [0.0, 1.0, 1.0, 1.0, 0.0]
+        rows.append(
+            [
+                math.log(score / (1.0 - score)),
+                *evidence,
+                math.log(max(detected, 1e-6)),
+                centre,
+                float(mask[h // 2, w // 2]),
+                math.log(max(share, 1e-6)),
+                consensus,
+            ]
+        )
+    return np.array(rows, dtype=np.float64).reshape(len(candidates), len(FEATURES))
+
+
+def choice_probabilities(features: NDArray) -> NDArray[np.float64]:
+    """The logistic model's probability that each candidate outlines the rock."""
+    t = np.clip(INTERCEPT + features @ WEIGHTS, -50.0, 50.0)
+    return 1.0 / (1.0 + np.exp(-t))
+
+
+def choose(candidates: Sequence[Segmentation], detection_scores: Sequence[float]) -> tuple[int, float]:
+    """Index of the candidate that outlines the rock, and the probability that it does.
+
+    The most probable candidate says which object the rock is; of the
+    candidates that outline the same object (IoU >= ``SAME_OBJECT`` with it),
+    the one whose outline the photo supports best wins (segmentation score,
+    a little for how clearly it was detected), so that a finer outline of
+    the same rock is not lost to a coarser one.
+    """
+    features = choice_features(candidates, detection_scores)
+    probabilities = choice_probabilities(features)
+    best = int(np.argmax(probabilities))
+    same = np.flatnonzero(_mutual_ious(candidates)[best] >= SAME_OBJECT)
+    support = [
+        math.log(max(candidates[k].rocks[0].score, 1e-12))
+        + _DETECTION_WEIGHT * features[k, FEATURES.index("log_detection")]
+        for k in same
+    ]
+    chosen = int(same[int(np.argmax(support))])
+    return chosen, float(probabilities[chosen])
+
+
+#: Intersection over union from which two candidates outline the same object.
+SAME_OBJECT = 0.9
+#: Weight of the log detection score beside the log segmentation score among
+#: outlines of the same object (a tenth of the detection score costs a quarter).
+_DETECTION_WEIGHT = 0.125

@@ -1,0 +1,119 @@
+"""The choice among candidate outlines of the main rock (rockscan.core.segment.choose)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from rockscan.core.segment import segment
+from rockscan.core.segment.choose import FEATURES, SAME_OBJECT, choice_features, choose
+from rockscan.core.segment.split import _solidity
+from rockscan.core.segment.types import RockMask, Segmentation
+
+SHAPE = (120, 160)
+
+
+def disk(row: float, col: float, radius: float) -> np.ndarray:
+    rr, cc = np.mgrid[: SHAPE[0], : SHAPE[1]]
+    return (rr - row) ** 2 + (cc - col) ** 2 <= radius**2
+
+
+def candidate(mask: np.ndarray, score: float = 0.9, frame: float = 0.0) -> Segmentation:
+    """A one-rock segmentation of ``mask`` with clean evidence, unless told otherwise."""
+    rock = RockMask(
+        mask=mask,
+        coverage=mask.astype(np.float32),
+        origin_rowcol=(0, 0),
+        score=score,
+        evidence=(0.95, 0.0, 0.03, 0.1, frame, _solidity(mask)),
+    )
+    return Segmentation(
+        labels=mask.astype(np.int32),
+        rocks=(rock,),
+        scale_rowcol=(1.0, 1.0),
+        polarity="dark",
+        channel="luminance",
+    )
+
+
+def test_features_measure_position_area_and_consensus():
+    centred = candidate(disk(60, 80, 30))
+    same = candidate(disk(61, 80, 30))
+    corner = candidate(disk(15, 15, 10))
+    features = choice_features([centred, same, corner], [1.0, 1.0, 1.0])
+    col = {name: i for i, name in enumerate(FEATURES)}
+    assert features.shape == (3, len(FEATURES))
+    # Position: a centred disk covers the centre; the corner one lies far from it.
+    assert features[0, col["covers_centre"]] == 1.0 and features[2, col["covers_centre"]] == 0.0
+    assert features[0, col["centre_distance"]] < 0.01
+    assert features[2, col["centre_distance"]] == pytest.approx(
+        np.hypot(15.5 / 120 - 0.5, 15.5 / 160 - 0.5), abs=0.01
+    )
+    # Area: the log of the share of the frame.
+    assert features[0, col["log_area"]] == pytest.approx(np.log(disk(60, 80, 30).mean()))
+    # Consensus: the mean IoU with the (at most three) most overlapping others;
+    # the near copies agree with each other, the corner disk with nobody.
+    a, b = disk(60, 80, 30), disk(61, 80, 30)
+    copies = (a & b).sum() / (a | b).sum()
+    assert features[0, col["consensus"]] == pytest.approx(copies / 2, abs=0.02)
+    assert features[1, col["consensus"]] == pytest.approx(copies / 2, abs=0.02)
+    assert features[2, col["consensus"]] == 0.0
+    assert features[0, col["logit_score"]] == pytest.approx(np.log(0.9 / 0.1))
+
+
+def test_a_candidate_along_the_frame_loses_to_one_inside_it():
+    inside = candidate(disk(60, 80, 25))
+    along = candidate(disk(0, 0, 40), frame=0.6)
+    assert choose([along, inside], [1.0, 1.0])[0] == 1
+
+
+def test_of_outlines_of_the_same_rock_the_better_supported_wins():
+    masks = [disk(60, 80, 30), disk(60, 80, 29.5), disk(60, 81, 30)]
+    scores = [0.7, 0.95, 0.8]
+    found = [candidate(m, s) for m, s in zip(masks, scores, strict=True)]
+    ious = [(masks[0] & m).sum() / (masks[0] | m).sum() for m in masks]
+    assert min(ious) >= SAME_OBJECT
+    assert choose(found, [1.0, 1.0, 1.0])[0] == 1
+
+
+def test_the_probability_is_in_zero_one_and_higher_for_a_clean_outline_inside_the_frame():
+    inside = choose([candidate(disk(60, 80, 25)), candidate(disk(61, 80, 25))], [1.0, 1.0])
+    along = choose([candidate(disk(0, 0, 40), frame=0.6), candidate(disk(1, 0, 40), frame=0.6)], [1.0, 1.0])
+    assert 0.0 <= along[1] < inside[1] <= 1.0
+
+
+@settings(max_examples=25, deadline=None)
+@given(st.permutations(range(4)))
+def test_the_choice_does_not_depend_on_the_order_of_candidates(order):
+    masks = [disk(60, 80, 30), disk(20, 30, 12), disk(90, 130, 20), disk(60, 60, 18)]
+    scores = [0.9, 0.6, 0.4, 0.75]
+    found = [candidate(m, s) for m, s in zip(masks, scores, strict=True)]
+    chosen = found[choose(found, [1.0] * 4)[0]]
+    permuted = [found[k] for k in order]
+    assert permuted[choose(permuted, [1.0] * 4)[0]] is chosen
+
+
+def test_a_star_keeps_its_arms_beside_a_solid_pebble():
+    """Solidity is no choice feature: a crisp star outline wins over a small solid blob."""
+    rr, cc = np.mgrid[: SHAPE[0], : SHAPE[1]]
+    angle = np.arctan2(rr - 60, cc - 80)
+    star = np.hypot(rr - 60, cc - 80) <= 22 + 14 * np.cos(5 * angle)
+    found = [candidate(star, 0.95), candidate(disk(20, 20, 6), 0.3)]
+    assert found[0].rocks[0].evidence[5] < 0.75 < found[1].rocks[0].evidence[5]
+    assert choose(found, [1.0, 0.5])[0] == 0
+
+
+def test_segment_takes_the_chosen_candidate_on_a_photo_with_a_neighbour_at_the_edge():
+    """A dark rock in the middle of a light frame, a darker neighbour cut by the frame."""
+    rng = np.random.default_rng(3)
+    photo = np.full(SHAPE, 200.0) + rng.normal(0, 4, SHAPE)
+    photo[disk(60, 80, 28)] = 90
+    photo[disk(60, -10, 35)] = 40
+    found = segment(photo.clip(0, 255).astype(np.uint8))
+    main = found.labels == 1
+    truth = disk(60, 80, 28)
+    scale = found.scale_rowcol
+    assert scale == (1.0, 1.0)
+    assert (main & truth).sum() / (main | truth).sum() > 0.9
