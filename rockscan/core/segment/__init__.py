@@ -193,8 +193,8 @@ def _candidate_pool(
     """Candidate segmentations of the main rock with their detection scores, or a finished one.
 
     A finished segmentation comes back for an alpha channel, for
-    ``all_rocks``, and (with ``fast``) for an easy photo whose first outline
-    the photo clearly supports and whose detection had no rival. Otherwise
+    ``all_rocks``, and (with ``fast``) for an easy photo: an outline the
+    photo supports all round, of a detection without rival. Otherwise
     the candidates of each channel's detection, and their refinements on demand.
     """
     arr = _check_pixels(pixels)
@@ -231,14 +231,14 @@ def _candidate_pool(
             found = outline(candidate)
             if found is None:
                 continue
+            # Fast path: an outline the photo supports all round, of a rock
+            # that stood out clearly from every other region, needs no rival.
+            if fast and found.rocks[0].score >= FAST_SCORE and _unrivalled(detection):
+                return found
             pool.append((found, candidate.score))
             key = _choice_key(found, candidate.score)
             if best is None or key > best[0]:
                 best = (key, found, candidate.score)
-            # Fast path: an outline the photo clearly supports, of a rock that
-            # stood out clearly from every other region, needs no rival.
-            if fast and best[1].rocks[0].score >= FAST_SCORE and _unrivalled(detection):
-                return best[1]
     if best is None:
         raise NoRockFoundError("no rock found: nothing stands out from the ground")
     # The refinements start from the outline the photo supports best.
@@ -247,7 +247,11 @@ def _candidate_pool(
 
 
 #: A main rock's segmentation score from which no other candidate is tried (the fast path).
-FAST_SCORE = 0.95
+#: Chosen on the development part: at 0.995 it stops on half the photos and
+#: is right (IoU >= 0.9) on 90% of them, and the part as a whole scores
+#: better than with no fast path (61.5% against 59.8%); at 0.95 it is right
+#: on 66% of the photos it stops on, and the part scores 53.6%.
+FAST_SCORE = 0.995
 
 
 def _unrivalled(detection: _Detection) -> bool:

@@ -61,8 +61,8 @@ _CONSENSUS_OF = 3
 
 #: Logistic weights of :data:`FEATURES` and the intercept, fitted by
 #: ``scripts/fit_segment_choice.py`` on the benchmark's development part.
-WEIGHTS = np.array([0, 2.586, 0, 0, 0, -16.46, 0, -0.9552, 0, 0.1172, 8.631], dtype=np.float64)
-INTERCEPT = -9.441
+WEIGHTS = np.array([0, 2.797, 0, 0, 0, -16.82, 0, -1.052, 0, 0.1617, 7.634], dtype=np.float64)
+INTERCEPT = -8.63
 
 
 def _grid_mask(found: Segmentation) -> NDArray[np.bool_]:
