@@ -486,7 +486,9 @@ class SensorSample:
 def _corrected(noise: NDArray[np.float64], dist_sq: ArrayLike) -> NDArray[np.float64]:
     """``sqrt(max(d**2 - noise, 0))``, ``noise`` broadcast over the trailing axis of ``dist_sq``."""
     dist_sq = np.asarray(dist_sq, dtype=np.float64)
-    return np.sqrt(np.maximum(dist_sq - noise.reshape(noise.shape + (1,) * (dist_sq.ndim - noise.ndim)), 0.0))
+    out = np.asarray(dist_sq - noise.reshape(noise.shape + (1,) * (dist_sq.ndim - noise.ndim)))
+    np.maximum(out, 0.0, out=out)
+    return np.sqrt(out, out=out)
 
 
 def _log_spectrum(radii: NDArray[np.float64]) -> NDArray[np.complex128]:

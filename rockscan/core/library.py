@@ -742,7 +742,7 @@ def _streamed_basis(
         # 4 KiB, more than making the faces: chunks take turns in a few buffers instead.
         # At most _BUILD_THREADS + 1 chunks are alive at once (_in_threads), and the
         # stream is done with one before it asks for the next; one buffer more is slack.
-        buffers = np.empty((_BUILD_THREADS + 2, _CHUNK, *config.face_shape))
+        buffers = np.empty((_BUILD_THREADS + 2, min(_CHUNK, n), *config.face_shape))
 
         def chunk_faces(start: int) -> NDArray[np.float64]:
             rows = slice(start, start + _CHUNK)

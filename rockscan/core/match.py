@@ -520,7 +520,6 @@ def match_radii(radii: ArrayLike, library: Library, config: MatchConfig | None =
     # The scan's distances come from expanded squares, whose rounding leaves
     # ~1e-8 where the truth is 0; the nearest shape's is recomputed directly
     # so that a library shape matched to itself scores exactly w = 0, MScore 1.
-    w = w.copy()
     w[k] = eps_best if w_metric == "eigenspace" else float(np.hypot(eps_best, residual))
     mean_w = float(w.mean())
     mscore = 1.0 - float(w.min()) / mean_w if mean_w > 0 else 1.0

@@ -135,7 +135,10 @@ class Shortlist:
         # the bound tracks the distance closely but not in proportion.
         spread = float(np.sum((x - x.mean()) ** 2))
         slope = float(np.sum((x - x.mean()) * (y - y.mean())) / spread) if spread > 0 else 0.0
-        w_all = np.maximum(float(y.mean()) + slope * (self.bound - float(x.mean())), float(w.min()))
+        w_all = self.bound - float(x.mean())
+        w_all *= slope
+        w_all += float(y.mean())
+        np.maximum(w_all, float(w.min()), out=w_all)
         w_all[self.index] = w
         shift_all = np.full(self.bound.size, np.nan)
         shift_all[self.index] = best_shift
