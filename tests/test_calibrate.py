@@ -67,6 +67,22 @@ def test_the_sensor_distance_finds_a_shape_at_any_rotation_and_scale(small_lib, 
     assert (found[0] - shift) % 72 == 0  # the star's five-fold symmetry
 
 
+@given(noise=st.floats(0.0, 0.3), seed=st.integers(0, 1000))
+def test_one_sample_gives_what_each_method_gives(small_lib, noise, seed):
+    """What a match asks of a sample, from one spectrum: the same numbers to the last bit."""
+    metric = small_lib.sensor_metric
+    radii = simulate_radii(BLUNT, noise, rng=seed)[0]
+    sample = metric.sample(radii)
+    np.testing.assert_array_equal(sample.spectrum, metric.sample_spectrum(radii))
+    assert sample.noise_energy == float(metric.noise_energy(radii))
+    assert sample.noise_level == float(metric.noise_level(radii))
+    dist_sq = metric.squared_distances(radii)
+    np.testing.assert_array_equal(metric.spectrum_distances(sample.spectrum), dist_sq)
+    best = dist_sq.min(axis=0)
+    np.testing.assert_array_equal(sample.corrected(best), metric.corrected(radii, best))
+    assert np.all(sample.corrected(best) <= np.sqrt(best))
+
+
 def test_with_every_weight_one_the_sensor_distance_is_the_log_radii_matched_filter():
     metric = SensorMetric.from_radii(np.array([STAR, EGG]))
     flat = SensorMetric(

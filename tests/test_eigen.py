@@ -193,6 +193,26 @@ def test_a_library_built_the_large_way_matches_its_own_shapes(default_specs):
         assert m.distance == pytest.approx(0.0, abs=1e-6)
 
 
+def test_a_large_build_in_threads_equals_one_in_turn(monkeypatch):
+    """Faces made two chunks at a time, in buffers that take turns: the same basis to the last bit."""
+    from rockscan.core import library as library_module
+    from rockscan.core.information import FaceConfig
+    from rockscan.core.library import Library, ShapeSpec
+    from rockscan.core.render import random_superformula
+
+    rng = np.random.default_rng(3)
+    shapes = [ShapeSpec(f"s-{i}", random_superformula(rng)) for i in range(200)]
+    config = FaceConfig(n_angles=64, resolution=0.05)
+    monkeypatch.setattr(library_module, "_CHUNK", 16)  # 13 chunks through 4 buffers
+    built = [Library.from_shapes(shapes, face_config=config, exact_limit=0, n_components=8)]
+    monkeypatch.setattr(library_module, "_BUILD_THREADS", 1)
+    built.append(Library.from_shapes(shapes, face_config=config, exact_limit=0, n_components=8))
+    threaded, serial = built
+    for name in ("mean", "components", "eigenvalues", "weights"):
+        np.testing.assert_array_equal(getattr(threaded.basis, name), getattr(serial.basis, name))
+    np.testing.assert_array_equal(threaded.cutoffs, serial.cutoffs)
+
+
 def test_a_truncated_fit_makes_the_same_leading_eigenfaces(rng):
     faces = rng.normal(size=(30, 40))
     full = EigenBasis.from_faces(faces)

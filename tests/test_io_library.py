@@ -6,16 +6,19 @@ import io
 import json
 import pickle
 import re
+import tomllib
 import tracemalloc
 import zipfile
 from pathlib import Path
 
 import numpy as np
 import pytest
+from hypothesis import given
+from hypothesis import strategies as st
 
 from rockscan.core.errors import LibraryError, ParameterError, SpecError
 from rockscan.core.information import FaceConfig
-from rockscan.core.library import Library
+from rockscan.core.library import Library, ShapeSpec
 from rockscan.core.match import match_radii
 from rockscan.io import (
     LIBRARY_VERSION,
@@ -28,6 +31,7 @@ from rockscan.io import (
     save_library,
     write_spec,
 )
+from rockscan.io import spec as spec_module
 
 
 def test_default_spec_is_shipped_and_valid(default_specs):
@@ -73,6 +77,46 @@ def test_bad_specs_name_the_problem(tmp_path, text, message):
     path.write_text(text)
     with pytest.raises(SpecError, match=message):
         read_spec(path)
+
+
+_TOML_FLOATS = st.floats(allow_nan=False, allow_infinity=False) | st.integers(-(10**6), 10**6)
+_TOML_TEXT = st.text(st.characters(codec="utf-8", exclude_characters='"\\'), max_size=12)
+_TOML_VALUES = (
+    _TOML_FLOATS.map(lambda v: repr(v) if isinstance(v, float) else str(v))
+    | _TOML_TEXT.map(lambda t: '"' + t + '"')
+    | st.lists(_TOML_TEXT, max_size=3).map(lambda items: "[" + ", ".join(f'"{t}"' for t in items) + "]")
+    | st.sampled_from(["1_000", "0x1f", "01", "1.", ".5", "inf", "nan", "true", "1e", "-0.0", "+3"])
+)
+_TOML_LINES = st.lists(
+    st.sampled_from(["[[shape]]", "", "# a comment", "[shape]", "\t[[ shape ]]  "])
+    | st.tuples(st.sampled_from(["name", "m1", "n3", "images", "k_2", "a b"]), _TOML_VALUES).map(
+        lambda kv: f"{kv[0]} = {kv[1]}"
+    ),
+    max_size=12,
+)
+
+
+@given(lines=_TOML_LINES, newline=st.sampled_from(["\n", "\r\n"]))
+def test_the_plain_spec_reader_agrees_with_tomllib(lines, newline):
+    """Where it reads a text at all, it reads what tomllib does; elsewhere tomllib reads it."""
+    text = newline.join(lines)
+    fast = spec_module._simple_spec(text)
+    try:
+        full = tomllib.loads(text)
+    except tomllib.TOMLDecodeError:
+        full = None
+    if fast is not None:
+        assert fast == full
+        assert [type(v) for t in fast["shape"] for v in t.values()] == [
+            type(v) for t in full["shape"] for v in t.values()
+        ]
+
+
+def test_a_written_spec_takes_the_plain_reader(default_specs, tmp_path):
+    shapes = [*default_specs, ShapeSpec("from-photos", images=("a b.png", "c.jpg"), interest=2.5)]
+    text = write_spec(shapes)
+    assert spec_module._simple_spec(text) == tomllib.loads(text)
+    assert spec_module._simple_spec("# made by hand\n" + text) is None  # tomllib's turn
 
 
 def test_missing_spec(tmp_path):

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import pickle
+
 import numpy as np
 import pytest
 from conftest import PAPER_SHAPES
@@ -271,6 +273,19 @@ def test_growing_keeps_earlier_libraries_and_branches(small_lib):
     assert a.assess(radii).score == pytest.approx(0.0, abs=1e-6)
     with pytest.raises(LibraryError, match="unique"):
         a.with_shape("seen-a", radii)
+
+
+def test_a_grown_library_names_its_shapes_as_a_tuple_does(small_lib):
+    names = _grown(small_lib, 3, seed=8).library.names  # shares its list with later growth
+    as_tuple = tuple(list(names))
+    assert len(names) == len(small_lib) + 3 and names[-1] == "seen-2" == as_tuple[-1]
+    assert names == as_tuple and as_tuple == names and hash(names) == hash(as_tuple)
+    assert names[1:3] == as_tuple[1:3] and names.index("seen-1") == as_tuple.index("seen-1")
+    assert "seen-0" in names and "seen-3" not in names and names != as_tuple[:-1]
+    assert repr(names) == repr(as_tuple) and pickle.loads(pickle.dumps(names)) == as_tuple
+    assert type(pickle.loads(pickle.dumps(names))) is tuple
+    with pytest.raises(IndexError):
+        names[len(as_tuple)]
 
 
 def test_saved_grown_library_loads(small_lib, tmp_path):

@@ -77,6 +77,7 @@ __all__ = [
     "CalibrationSamples",
     "SensorMetric",
     "SensorModel",
+    "SensorSample",
     "calibrate",
     "cutoff_at",
     "log_noise_variance",
@@ -347,9 +348,12 @@ class SensorMetric:
 
     def _band_power(self, radii: ArrayLike) -> NDArray[np.float64]:
         """Median power of the noise band, ``(...)``: robust to a shape's few harmonics there."""
+        return self._band_power_of(_log_spectrum(np.asarray(radii, dtype=np.float64)))
+
+    def _band_power_of(self, raw: NDArray[np.complex128]) -> NDArray[np.float64]:
+        """:meth:`_band_power` from the log radii's spectrum (:func:`_log_spectrum`)."""
         lo, hi = self.noise_band
-        spectrum = _log_spectrum(np.asarray(radii, dtype=np.float64))[..., lo:hi]
-        return np.median(np.abs(spectrum) ** 2, axis=-1)
+        return np.median(np.abs(raw[..., lo:hi]) ** 2, axis=-1)
 
     def noise_energy(self, radii: ArrayLike) -> NDArray[np.float64]:
         """The expected noise part of a sample's ``d**2`` to its own shape, ``(...)``.
@@ -369,16 +373,38 @@ class SensorMetric:
         dist_sq : (..., k) array_like of float
             Squared distances of those samples (any trailing axis).
         """
-        noise = self.noise_energy(radii)
-        dist_sq = np.asarray(dist_sq, dtype=np.float64)
-        return np.sqrt(
-            np.maximum(dist_sq - noise.reshape(noise.shape + (1,) * (dist_sq.ndim - noise.ndim)), 0.0)
-        )
+        return _corrected(self.noise_energy(radii), dist_sq)
 
     def noise_level(self, radii: ArrayLike) -> NDArray[np.float64]:
         """A sample's outline noise as estimated from itself (standard deviation of ``e``), ``(...)``."""
-        ratio = self.noise_energy(radii) / max(self.noise_floor, 1e-300)
-        return self.tolerance * np.sqrt(ratio)
+        return self._noise_level_of(self.noise_energy(radii))
+
+    def _noise_level_of(self, energy: NDArray[np.float64]) -> NDArray[np.float64]:
+        return self.tolerance * np.sqrt(energy / max(self.noise_floor, 1e-300))
+
+    def sample(self, radii: ArrayLike) -> SensorSample:
+        """Everything the metric needs of one sample, from one spectrum of its log radii.
+
+        A match asks for the sample's weighted spectrum, its noise energy and
+        its noise level; each of :meth:`sample_spectrum`, :meth:`noise_energy`
+        and :meth:`noise_level` would take the logarithm and the FFT again.
+
+        Parameters
+        ----------
+        radii : (n_angles,) array_like of float
+
+        Returns
+        -------
+        SensorSample
+            The same numbers as those methods give.
+        """
+        raw = _log_spectrum(np.asarray(radii, dtype=np.float64))
+        energy = self.noise_gain * self._band_power_of(raw)
+        return SensorSample(
+            spectrum=raw * np.sqrt(self.weights),
+            noise_energy=float(energy),
+            noise_level=float(self._noise_level_of(energy)),
+        )
 
     @property
     def n_angles(self) -> int:
@@ -405,7 +431,12 @@ class SensorMetric:
             is the sample turned back by ``a`` rays, as in
             :func:`rockscan.core.match.rotation_scores`.
         """
-        x = self.sample_spectrum(radii)
+        return self.spectrum_distances(self.sample_spectrum(radii), shapes)
+
+    def spectrum_distances(
+        self, x: NDArray[np.complex128], shapes: ArrayLike | None = None
+    ) -> NDArray[np.float64]:
+        """:meth:`squared_distances` of samples given by their :meth:`sample_spectrum`."""
         n = self.n_angles
         own = _full_sum(np.abs(x) ** 2, n)
         if shapes is not None:
@@ -427,6 +458,37 @@ class SensorMetric:
         dist_sq = self.squared_distances(radii)
         shift = np.argmin(dist_sq, axis=-2)
         return np.sqrt(np.take_along_axis(dist_sq, shift[..., None, :], axis=-2)[..., 0, :]), shift
+
+
+@dataclass(frozen=True, eq=False)
+class SensorSample:
+    """One sample as :class:`SensorMetric` sees it (:meth:`SensorMetric.sample`).
+
+    Attributes
+    ----------
+    spectrum : (n_freq,) ndarray of complex
+        :meth:`SensorMetric.sample_spectrum`, ``sqrt(w_f) X_f``.
+    noise_energy : float
+        :meth:`SensorMetric.noise_energy`.
+    noise_level : float
+        :meth:`SensorMetric.noise_level`.
+    """
+
+    spectrum: NDArray[np.complex128]
+    noise_energy: float
+    noise_level: float
+
+    def corrected(self, dist_sq: ArrayLike) -> NDArray[np.float64]:
+        """:meth:`SensorMetric.corrected` of this sample's squared distances."""
+        return _corrected(np.asarray(self.noise_energy), dist_sq)
+
+
+def _corrected(noise: NDArray[np.float64], dist_sq: ArrayLike) -> NDArray[np.float64]:
+    """``sqrt(max(d**2 - noise, 0))``, ``noise`` broadcast over the trailing axis of ``dist_sq``."""
+    dist_sq = np.asarray(dist_sq, dtype=np.float64)
+    out = np.asarray(dist_sq - noise.reshape(noise.shape + (1,) * (dist_sq.ndim - noise.ndim)))
+    np.maximum(out, 0.0, out=out)
+    return np.sqrt(out, out=out)
 
 
 def _log_spectrum(radii: NDArray[np.float64]) -> NDArray[np.complex128]:

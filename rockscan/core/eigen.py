@@ -102,36 +102,7 @@ class EigenBasis:
         ParameterError
             With fewer than two faces, or non-finite values.
         """
-        faces = np.asarray(faces, dtype=np.float64)
-        if faces.ndim < 2 or faces.shape[0] < 2:
-            raise ParameterError("an eigenface basis needs at least two faces")
-        flat = faces.reshape(faces.shape[0], -1)
-        if not np.all(np.isfinite(flat)):
-            raise ParameterError("faces must be finite")
-        mean = flat.mean(axis=0)
-        centered = flat - mean
-        n_faces, n_pixels = centered.shape
-        if n_faces <= n_pixels:
-            # Turk & Pentland: eigenvectors of the small n_faces x n_faces matrix.
-            gram = centered @ centered.T
-            values, vectors = np.linalg.eigh(gram)
-            order = np.argsort(values)[::-1]
-            values, vectors = values[order], vectors[:, order]
-            keep = values > rtol * max(values[0], np.finfo(float).tiny)
-            if n_components is not None:  # only the eigenfaces kept are made
-                keep[int(max(n_components, 1)) :] = False
-            values, vectors = values[keep], vectors[:, keep]
-            components = (vectors.T @ centered) / np.sqrt(values)[:, None]
-        else:
-            values, vectors = np.linalg.eigh(centered.T @ centered)
-            order = np.argsort(values)[::-1]
-            values, vectors = values[order], vectors[:, order]
-            keep = values > rtol * max(values[0], np.finfo(float).tiny)
-            values, components = values[keep], vectors[:, keep].T
-        if n_components is not None:
-            if int(n_components) < 1:
-                raise ParameterError("n_components must be at least 1")
-            values, components = values[: int(n_components)], components[: int(n_components)]
+        mean, components, values, centered = _fit(faces, rtol, n_components)
         weights = centered @ components.T
         return cls(mean=mean, components=components, eigenvalues=values, weights=weights)
 
@@ -170,8 +141,8 @@ class EigenBasis:
         """
         if isinstance(n_components, bool) or int(n_components) < 1:
             raise ParameterError("n_components must be at least 1")
-        fit = cls.from_faces(fit_faces, n_components=int(n_components))
-        start_mean, directions = fit.mean, fit.components
+        # The sample's basis, without its coordinates (the stream makes every face's).
+        start_mean, directions, _, _ = _fit(fit_faces, 1e-10, int(n_components))
         n_pixels = start_mean.size
         face_sum = np.zeros(n_pixels)
         # (face - mean) . u as face . u - mean . u: no centred copy of each chunk.
@@ -270,6 +241,44 @@ class EigenBasis:
         inside = np.einsum("...c,...c->...", omega, omega)
         total = np.einsum("...p,...p->...", flat, flat)
         return eps, np.sqrt(np.maximum(total - inside, 0.0))
+
+
+def _fit(
+    faces: ArrayLike, rtol: float, n_components: int | None
+) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
+    """:meth:`EigenBasis.from_faces` up to the faces' coordinates: the mean face, the
+    eigenfaces, their eigenvalues and the centred faces."""
+    faces = np.asarray(faces, dtype=np.float64)
+    if faces.ndim < 2 or faces.shape[0] < 2:
+        raise ParameterError("an eigenface basis needs at least two faces")
+    flat = faces.reshape(faces.shape[0], -1)
+    if not np.all(np.isfinite(flat)):
+        raise ParameterError("faces must be finite")
+    mean = flat.mean(axis=0)
+    centered = flat - mean
+    n_faces, n_pixels = centered.shape
+    if n_faces <= n_pixels:
+        # Turk & Pentland: eigenvectors of the small n_faces x n_faces matrix.
+        gram = centered @ centered.T
+        values, vectors = np.linalg.eigh(gram)
+        order = np.argsort(values)[::-1]
+        values, vectors = values[order], vectors[:, order]
+        keep = values > rtol * max(values[0], np.finfo(float).tiny)
+        if n_components is not None:  # only the eigenfaces kept are made
+            keep[int(max(n_components, 1)) :] = False
+        values, vectors = values[keep], vectors[:, keep]
+        components = (vectors.T @ centered) / np.sqrt(values)[:, None]
+    else:
+        values, vectors = np.linalg.eigh(centered.T @ centered)
+        order = np.argsort(values)[::-1]
+        values, vectors = values[order], vectors[:, order]
+        keep = values > rtol * max(values[0], np.finfo(float).tiny)
+        values, components = values[keep], vectors[:, keep].T
+    if n_components is not None:
+        if int(n_components) < 1:
+            raise ParameterError("n_components must be at least 1")
+        values, components = values[: int(n_components)], components[: int(n_components)]
+    return mean, components, values, centered
 
 
 def _trailing_dims(shape: tuple[int, ...], n_pixels: int) -> int:

@@ -277,12 +277,16 @@ class Library:
         if face_array is not None and face_array.shape != (len(names), *config.face_shape):
             raise LibraryError(f"faces must be (n_shapes, {', '.join(map(str, config.face_shape))})")
         try:
-            basis = _basis(radii, config, face_array, n_components, exact_limit)
             metric = None
-            if calibration is None:
-                # The metric calibrate needs is the library's own: made once, kept.
-                metric = SensorMetric.from_radii(radii, tolerance)
-                calibration = calibrate(radii, examples=examples, tolerance=tolerance, metric=metric)
+            with ThreadPoolExecutor(max_workers=1) as pool:
+                # The cutoffs need the radii alone: they are calibrated beside the basis
+                # (whose eigen solver leaves a core idle), the same numbers as in turn.
+                cutoffs = None
+                if calibration is None:
+                    cutoffs = pool.submit(_cutoffs, radii, examples, tolerance)
+                basis = _basis(radii, config, face_array, n_components, exact_limit)
+                if cutoffs is not None:
+                    metric, calibration = cutoffs.result()
         except ParameterError as exc:
             raise LibraryError(str(exc)) from None
         library = cls(
@@ -318,6 +322,8 @@ class Library:
             names.append(shape.name)
             params.append(shape.params)
             interest.append(shape.interest)
+        if len(params) > EXACT_LIMIT:
+            _retain_freed_memory()
         radii = np.empty((len(params), config.n_angles))
         # A small library's radii one shape at a time, as they always were (to the
         # last bit); a large one's in vectorised chunks (to rounding, 1e-15).
@@ -510,6 +516,22 @@ def closed_shapes_radii(
     return centered / centered.mean(axis=1, keepdims=True), closed
 
 
+def _retain_freed_memory() -> None:
+    """Let the C allocator keep the memory a large build frees, to take it again.
+
+    glibc's malloc gives the free memory at the top of its heap back to the
+    kernel once more than twice its mmap threshold is free; the threshold
+    starts at 128 KiB and rises to the largest block freed so far (up to 32
+    MiB). Each chunk of a build frees some 25 MB of temporaries of about a
+    megabyte and takes them again for the next: with the thresholds at their
+    start, every 4 KiB page is faulted in again (280,000 page faults in a
+    10,000-shape build, a tenth of its time). Freeing one 24 MiB block raises
+    both for the process; other allocators ignore it. No result depends on it.
+    """
+    block = np.empty(24 << 20, dtype=np.uint8)
+    del block
+
+
 def _recentered(radii: NDArray[np.float64]) -> NDArray[np.float64]:
     """:func:`rockscan.core.polar.recenter_radii` of many outlines, (n, n_angles) -> (n, n_angles).
 
@@ -529,15 +551,21 @@ def _recentered(radii: NDArray[np.float64]) -> NDArray[np.float64]:
     n_points = px.shape[1]
     px, py = px.ravel(), py.ravel()
     step = 2.0 * np.pi / n_angles
-    phi_p = np.arctan2(py, px)
-    span = np.angle(np.exp(1j * (np.arctan2(qy, qx) - phi_p)))
+    phi = np.arctan2(y - cy[:, None], x - cx[:, None])
+    phi_p = phi.ravel()
+    # Each segment's end is the next one's start: its angle is the start's, rolled.
+    span = np.angle(np.exp(1j * (np.roll(phi, -1, axis=1).ravel() - phi_p)))
     lo, hi = np.minimum(phi_p, phi_p + span), np.maximum(phi_p, phi_p + span)
     first = np.ceil(lo / step - 1e-9).astype(np.int64)
     count = np.maximum(np.floor(hi / step + 1e-9).astype(np.int64) - first + 1, 0)
     seg = np.repeat(np.arange(px.size), count)
     offsets = np.arange(seg.size) - np.repeat(np.cumsum(count) - count, count)
     ray = first[seg] + offsets
-    dx, dy = np.cos(ray * step), np.sin(ray * step)
+    # The rays' directions from a table over the whole rays met (the same numbers as
+    # the cosine and sine of every crossing's ray, for a fraction of the work).
+    low = int(ray.min()) if ray.size else 0
+    turns = np.arange(low, int(ray.max()) + 1 if ray.size else low) * step
+    dx, dy = np.cos(turns)[ray - low], np.sin(turns)[ray - low]
     ex, ey = qx[seg] - px[seg], qy[seg] - py[seg]
     denom = dx * ey - dy * ex
     with np.errstate(divide="ignore", invalid="ignore"):
@@ -549,6 +577,16 @@ def _recentered(radii: NDArray[np.float64]) -> NDArray[np.float64]:
     out = np.zeros(n_shapes * n_angles)
     np.maximum.at(out, (seg // n_points) * n_angles + np.mod(ray, n_angles), np.maximum(along, 0.0))
     return out.reshape(n_shapes, n_angles)
+
+
+@one_blas_thread
+def _cutoffs(
+    radii: NDArray[np.float64], examples: Sequence[ArrayLike | None] | None, tolerance: float
+) -> tuple[SensorMetric, Calibration]:
+    """A library's sensor metric and the cutoffs calibrated on it (the metric is the
+    library's own: made once, kept)."""
+    metric = SensorMetric.from_radii(radii, tolerance)
+    return metric, calibrate(radii, examples=examples, tolerance=tolerance, metric=metric)
 
 
 def _symmetry_each(radii: NDArray[np.float64]) -> NDArray[np.int64]:
@@ -607,33 +645,54 @@ class _FaceTable:
         self.coefficients = np.stack([v0, s0, 3 * (v1 - v0) - 2 * s0 - s1, 2 * (v0 - v1) + s0 + s1])
         self.weights = reference_information(config)
 
-    def faces(self, radii: NDArray[np.float64]) -> NDArray[np.float64]:
-        """(n, n_angles) radii -> (n, n_angles, n_sections) faces."""
+    def __call__(self, radii: NDArray[np.float64]) -> NDArray[np.float64]:
+        return self.faces(radii)
+
+    def faces(
+        self, radii: NDArray[np.float64], out: NDArray[np.float64] | None = None
+    ) -> NDArray[np.float64]:
+        """(n, n_angles) radii -> (n, n_angles, n_sections) faces (written into ``out`` if given)."""
         u = np.minimum(normalize_radii(radii), self.r_max) / _TABLE_STEP
         cell = np.minimum(np.floor(u).astype(np.int64), self.coefficients.shape[1] - 1)
         t = u - cell
         c0, c1, c2, c3 = self.coefficients
-        out = np.empty((*radii.shape, c0.shape[1]))
+        if out is None:
+            out = np.empty((*radii.shape, c0.shape[1]))
+        # Two working rows per ray of a block, made once: memory freed and taken again
+        # every block is handed back to the kernel and faulted in again (glibc trims
+        # the top of a thread's heap), which cost more than the arithmetic.
+        work = np.empty((2, 8 * radii.shape[1], c0.shape[1]))
         for start in range(0, radii.shape[0], 8):  # blocks that stay in cache
             block = slice(start, start + 8)
             rows, tb = cell[block].ravel(), t[block].reshape(-1, 1)
+            q, term = work[0, : rows.size], work[1, : rows.size]
             # Horner's rule, one row of the table per ray and power at a time.
-            q = np.take(c3, rows, axis=0)
+            np.take(c3, rows, axis=0, out=q)
             q *= tb
-            q += np.take(c2, rows, axis=0)
+            q += np.take(c2, rows, axis=0, out=term)
             q *= tb
-            q += np.take(c1, rows, axis=0)
+            q += np.take(c1, rows, axis=0, out=term)
             q *= tb
-            q += np.take(c0, rows, axis=0)
+            q += np.take(c0, rows, axis=0, out=term)
             np.multiply(q.reshape(-1, *self.weights.shape), self.weights, out=out[block])
         return out
 
 
-def _face_function(config: FaceConfig):  # type: ignore[no-untyped-def]
+class _DirectFaces:
+    """Radii -> faces by :func:`rockscan.core.information.information_face` (no table)."""
+
+    def __init__(self, config: FaceConfig) -> None:
+        self.config = config
+
+    def __call__(self, radii: NDArray[np.float64]) -> NDArray[np.float64]:
+        return information_face(radii, self.config)
+
+
+def _face_function(config: FaceConfig) -> _FaceTable | _DirectFaces:
     """Radii -> faces for a large build: the table on the polar information grids."""
     if config.grid == "polar" and config.kind != "radii":
-        return _FaceTable(config).faces
-    return lambda radii: information_face(radii, config)
+        return _FaceTable(config)
+    return _DirectFaces(config)
 
 
 def _basis(
@@ -678,8 +737,19 @@ def _streamed_basis(
     rng = np.random.default_rng(seed)
     sample = np.sort(rng.choice(n, size=min(n, max(STREAM_FIT_FACES, 2 * n_keep)), replace=False))
     starts = range(0, n, _CHUNK)
-    if faces is None and _BUILD_THREADS > 1:
-        chunks = _in_threads(lambda start: faces_of(slice(start, start + _CHUNK)), starts, _BUILD_THREADS)
+    if faces is None and isinstance(make, _FaceTable) and _BUILD_THREADS > 1:
+        # A chunk of faces (37 MB) in fresh memory costs the kernel a page fault every
+        # 4 KiB, more than making the faces: chunks take turns in a few buffers instead.
+        # At most _BUILD_THREADS + 1 chunks are alive at once (_in_threads), and the
+        # stream is done with one before it asks for the next; one buffer more is slack.
+        buffers = np.empty((_BUILD_THREADS + 2, min(_CHUNK, n), *config.face_shape))
+
+        def chunk_faces(start: int) -> NDArray[np.float64]:
+            rows = slice(start, start + _CHUNK)
+            size = len(range(n)[rows])
+            return make.faces(radii[rows], out=buffers[(start // _CHUNK) % buffers.shape[0], :size])
+
+        chunks = _in_threads(chunk_faces, starts, _BUILD_THREADS)
     else:
         chunks = (faces_of(slice(start, start + _CHUNK)) for start in starts)
     return EigenBasis.from_face_stream(faces_of(sample), chunks, n_components=n_keep)

@@ -45,6 +45,7 @@ from rockscan.core.errors import ParameterError
 from rockscan.core.information import information_face, sample_term
 
 if TYPE_CHECKING:
+    from rockscan.core.calibrate import SensorSample
     from rockscan.core.library import Library
     from rockscan.core.prefilter import Prefilter, SensorPrefilter, SensorShortlist, Shortlist
 
@@ -327,7 +328,8 @@ class ScanTemplates:
                 norm_sq = np.einsum("ac,ac->a", omega, omega)
             else:
                 norm_sq = self.centered_norm_sq(q, spectrum)
-            out[metric] = np.maximum(norm_sq[:, None] + base, 0.0)
+            dist_sq = np.add(norm_sq[:, None], base)
+            out[metric] = np.maximum(dist_sq, 0.0, out=dist_sq)
         return out
 
     def coordinates(self, q: NDArray[np.float64]) -> tuple[NDArray[np.complex128], NDArray[np.float64]]:
@@ -432,7 +434,7 @@ def _scan(
             squared = templates.squared_distances(q, metrics)
         else:
             squared = templates.squared_distances(q, metrics, shapes.index, (shapes.spectrum, shapes.omega))
-        return {m: np.sqrt(v) for m, v in squared.items()}
+        return {m: np.sqrt(v, out=v) for m, v in squared.items()}
     # The paper's Cartesian grid map: every rotation needs its own face.
     turned = np.stack([np.roll(radii, -a) for a in range(config.n_angles)])
     faces = information_face(turned, config)
@@ -473,7 +475,9 @@ def match_radii(radii: ArrayLike, library: Library, config: MatchConfig | None =
     metrics = tuple(dict.fromkeys((w_metric, config.angle_metric)))
     # The sample term is computed once: for the scan and for the nearest shape's face.
     q = sample_term(radii, face_config) if face_config.grid == "polar" else None
-    if config.metric == "auto" and _clean_enough(radii, library):
+    # So is what the sensor model needs of it (one spectrum of the log radii).
+    sensed = library.sensor_metric.sample(radii)
+    if config.metric == "auto" and _clean_enough(radii, library, sensed.noise_level):
         metric = "eigenspace"
     # A large library scans only the shapes a lower bound cannot rule out
     # (prefilter.py); None: every shape.
@@ -481,7 +485,7 @@ def match_radii(radii: ArrayLike, library: Library, config: MatchConfig | None =
     sensor_filter = library.sensor_prefilter if config.scan else None
     sensor_list = None
     if sensor_filter is not None and metric == "sensor":
-        sensor_list = sensor_filter.select(radii, library.sensor_metric)
+        sensor_list = sensor_filter.select(radii, library.sensor_metric, spectrum=sensed.spectrum)
     shortlist = _shortlist(prefilter, sensor_list, config, q, library, w_metric)
     dist = _scan(radii, library, metrics, scan=config.scan, q=q, shapes=shortlist)
     chosen = dist[w_metric]
@@ -493,9 +497,11 @@ def match_radii(radii: ArrayLike, library: Library, config: MatchConfig | None =
         w, best_shift = shortlist.widen(w, best_shift)
     # The sensor distance with the sample's own noise taken out (rockscan.core.calibrate):
     # the ranking is the same, and the cutoffs were calibrated on it.
-    k, sensor_sq = _sensor_pass(radii, library, config.scan, metric, sensor_filter, sensor_list, nearest_w)
-    sensor = library.sensor_metric.corrected(radii, sensor_sq)
-    noise = float(library.sensor_metric.noise_level(radii))
+    k, sensor_sq = _sensor_pass(
+        radii, library, config.scan, metric, sensor_filter, sensor_list, nearest_w, sensed
+    )
+    sensor = sensed.corrected(sensor_sq)
+    noise = sensed.noise_level
     col = k  # the nearest shape's column of dist
     if shortlist is not None:
         hit = np.flatnonzero(shortlist.index == k)
@@ -514,7 +520,6 @@ def match_radii(radii: ArrayLike, library: Library, config: MatchConfig | None =
     # The scan's distances come from expanded squares, whose rounding leaves
     # ~1e-8 where the truth is 0; the nearest shape's is recomputed directly
     # so that a library shape matched to itself scores exactly w = 0, MScore 1.
-    w = w.copy()
     w[k] = eps_best if w_metric == "eigenspace" else float(np.hypot(eps_best, residual))
     mean_w = float(w.mean())
     mscore = 1.0 - float(w.min()) / mean_w if mean_w > 0 else 1.0
@@ -566,6 +571,7 @@ def _sensor_pass(
     sensor_filter: SensorPrefilter | None,
     sensor_list: SensorShortlist | None,
     nearest_w: int,
+    sensed: SensorSample,
 ) -> tuple[int, NDArray[np.float64]]:
     """The nearest shape and every shape's squared sensor distance (at its best
     rotation with ``scan``): exact where it could decide, a lower bound elsewhere."""
@@ -573,8 +579,10 @@ def _sensor_pass(
         # Exact for every shape that could be nearest, a lower bound for the others.
         return sensor_list.nearest, sensor_list.bound
     if sensor_filter is not None:
-        return nearest_w, sensor_filter.bounds_with(radii, library.sensor_metric, np.array([nearest_w]))
-    sensor_sq = library.sensor_metric.squared_distances(radii)
+        return nearest_w, sensor_filter.bounds_with(
+            radii, library.sensor_metric, np.array([nearest_w]), spectrum=sensed.spectrum
+        )
+    sensor_sq = library.sensor_metric.spectrum_distances(sensed.spectrum)
     sensor_sq = sensor_sq.min(axis=0) if scan else sensor_sq[0]
     # Ranked before the noise is taken out: distances below the noise would tie at 0.
     return (int(np.argmin(sensor_sq)) if metric == "sensor" else nearest_w), sensor_sq
@@ -590,7 +598,9 @@ def _angles(
 ) -> tuple[NDArray[np.float64], float]:
     """Every shape's best angle, and the nearest shape's refined on ``angle_metric``."""
     step_deg = 360.0 / library.face_config.n_angles
-    angles = np.mod(best_shift * step_deg, 360.0) if config.scan else np.zeros(best_shift.size)
+    # Shifts are whole rays in [0, n_angles) (NaN where estimated): their angles are
+    # already in [0, 360).
+    angles = best_shift * step_deg if config.scan else np.zeros(best_shift.size)
     angle_deg = 0.0
     if config.scan:
         along = dist[config.angle_metric][:, col]
@@ -608,7 +618,7 @@ def _angles(
     return angles, angle_deg
 
 
-def _clean_enough(radii: NDArray[np.float64], library: Library) -> bool:
+def _clean_enough(radii: NDArray[np.float64], library: Library, noise: float | None = None) -> bool:
     """Whether "auto" ranks this sample by the paper's eigenspace distance.
 
     A sample whose own noise (estimated from it, ``SensorMetric.noise_level``)
@@ -616,11 +626,12 @@ def _clean_enough(radii: NDArray[np.float64], library: Library) -> bool:
     of at least ``AUTO_MIN_COMPONENTS`` dimensions: the eigenspace distance then
     leaves out irregularities no library shape has (real coins stay circles).
     Noisier samples are ranked by the sensor distance, which weighs what the
-    noise leaves of each harmonic.
+    noise leaves of each harmonic. ``noise``: that estimate, when at hand.
     """
     if library.basis.n_components < AUTO_MIN_COMPONENTS:
         return False
-    return bool(library.sensor_metric.noise_level(radii) < AUTO_CLEAN_FRACTION * library.tolerance)
+    noise = library.sensor_metric.noise_level(radii) if noise is None else noise
+    return bool(noise < AUTO_CLEAN_FRACTION * library.tolerance)
 
 
 def _decide(

@@ -135,7 +135,10 @@ class Shortlist:
         # the bound tracks the distance closely but not in proportion.
         spread = float(np.sum((x - x.mean()) ** 2))
         slope = float(np.sum((x - x.mean()) * (y - y.mean())) / spread) if spread > 0 else 0.0
-        w_all = np.maximum(float(y.mean()) + slope * (self.bound - float(x.mean())), float(w.min()))
+        w_all = self.bound - float(x.mean())
+        w_all *= slope
+        w_all += float(y.mean())
+        np.maximum(w_all, float(w.min()), out=w_all)
         w_all[self.index] = w
         shift_all = np.full(self.bound.size, np.nan)
         shift_all[self.index] = best_shift
@@ -459,7 +462,11 @@ class SensorPrefilter:
     norm_sq: NDArray[np.float32] = field(init=False, repr=False)
 
     def __post_init__(self) -> None:
-        features = np.ascontiguousarray(self.features, dtype=np.float32)
+        # Kept feature by feature (the transpose of a contiguous (n_features, n_shapes)
+        # array): the product with a sample is then a pass down long rows, three times
+        # faster than one short dot product per shape.
+        columns = np.ascontiguousarray(np.asarray(self.features, dtype=np.float32).T)
+        features = columns.T
         object.__setattr__(self, "features", features)
         object.__setattr__(self, "norm_sq", np.einsum("kd,kd->k", features, features))
 
@@ -504,7 +511,7 @@ class SensorPrefilter:
         sample = features_of(_sensor_magnitudes(spectrum[None], n_angles), self.n_lead, self.group)[0]
         sample = (sample.astype(np.float64) - self.centre).astype(np.float32)
         sample_sq = float(sample @ sample)
-        out = self.features @ sample
+        out = sample @ self.features.T
         out *= -2.0
         out += self.norm_sq
         out += sample_sq
@@ -513,15 +520,27 @@ class SensorPrefilter:
         return np.maximum(out.astype(np.float64) - slack, 0.0)
 
     def bounds_with(
-        self, radii: NDArray[np.float64], metric: SensorMetric, shapes: NDArray[np.int64]
+        self,
+        radii: NDArray[np.float64],
+        metric: SensorMetric,
+        shapes: NDArray[np.int64],
+        *,
+        spectrum: NDArray[np.complex128] | None = None,
     ) -> NDArray[np.float64]:
-        """Every shape's bound of one sample, with the exact squared distance for ``shapes``."""
-        spectrum = metric.sample_spectrum(radii)
+        """Every shape's bound of one sample, with the exact squared distance for ``shapes``
+        (``spectrum``: the sample's ``metric.sample_spectrum(radii)`` when at hand)."""
+        spectrum = metric.sample_spectrum(radii) if spectrum is None else spectrum
         lb = self.bounds(spectrum, metric.n_angles)
         lb[shapes] = _sensor_min_sq(metric, spectrum, shapes)
         return lb
 
-    def select(self, radii: NDArray[np.float64], metric: SensorMetric) -> SensorShortlist:
+    def select(
+        self,
+        radii: NDArray[np.float64],
+        metric: SensorMetric,
+        *,
+        spectrum: NDArray[np.complex128] | None = None,
+    ) -> SensorShortlist:
         """The shapes that could be nearest by the sensor distance, and their exact distances.
 
         Parameters
@@ -530,12 +549,15 @@ class SensorPrefilter:
             The sample.
         metric : SensorMetric
             The library's metric this prefilter was made from.
+        spectrum : (n_freq,) ndarray of complex, optional
+            ``metric.sample_spectrum(radii)`` when already at hand.
         """
-        spectrum = metric.sample_spectrum(radii)
+        spectrum = metric.sample_spectrum(radii) if spectrum is None else spectrum
         lb = self.bounds(spectrum, metric.n_angles)
+        own = _own_sq(spectrum, metric.n_angles)
         k = min(self.n_first, lb.size)
         first = np.argpartition(lb, k - 1)[:k] if k < lb.size else np.arange(lb.size)
-        first_sq = _sensor_min_sq(metric, spectrum, first)
+        first_sq = _sensor_min_sq(metric, spectrum, first, own)
         best = float(first_sq.min())
         below = lb <= best
         below[first] = False
@@ -549,7 +571,7 @@ class SensorPrefilter:
             batch = batch[lb[batch] <= best]
             if batch.size == 0:
                 break
-            batch_sq = _sensor_min_sq(metric, spectrum, batch)
+            batch_sq = _sensor_min_sq(metric, spectrum, batch, own)
             best = min(best, float(batch_sq.min()))
             done.append(batch)
             found.append(batch_sq)
@@ -569,18 +591,27 @@ def _sensor_magnitudes(spectra: NDArray[np.complex128], n_angles: int) -> NDArra
     return np.abs(spectra) * np.sqrt(count)
 
 
+def _own_sq(spectrum: NDArray[np.complex128], n_angles: int) -> float:
+    """A sample's own squared norm over the full spectrum, from its half."""
+    count = np.full(spectrum.size, 2.0)
+    count[0] = 1.0
+    if n_angles % 2 == 0:
+        count[-1] = 1.0
+    return float(np.sum(count * np.abs(spectrum) ** 2))
+
+
 def _sensor_min_sq(
-    metric: SensorMetric, spectrum: NDArray[np.complex128], shapes: NDArray[np.int64]
+    metric: SensorMetric,
+    spectrum: NDArray[np.complex128],
+    shapes: NDArray[np.int64],
+    own: float | None = None,
 ) -> NDArray[np.float64]:
-    """Exact squared sensor distances of one sample to some shapes, each at its best rotation."""
+    """Exact squared sensor distances of one sample to some shapes, each at its best rotation
+    (``own``: :func:`_own_sq` of the sample, when at hand)."""
     if shapes.size == 0:
         return np.zeros(0)
     n = metric.n_angles
-    count = np.full(spectrum.size, 2.0)
-    count[0] = 1.0
-    if n % 2 == 0:
-        count[-1] = 1.0
-    own = float(np.sum(count * np.abs(spectrum) ** 2))
+    own = _own_sq(spectrum, n) if own is None else own
     corr = np.fft.irfft(spectrum[None, :] * np.conj(metric.spectra[shapes]), n=n, axis=-1)
     return np.maximum(own + metric.norm_sq[shapes] - 2.0 * n * corr.max(axis=1), 0.0)
 

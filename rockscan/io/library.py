@@ -45,6 +45,7 @@ _CUTOFF_ARRAYS = ("cutoffs", "cutoff_spacing", "cutoff_crowded", "cutoff_calibra
 _CLEAN_CUTOFFS = "cutoff_clean"
 #: A large library's sensor metric (optional: made on first use when absent).
 _SENSOR_ARRAYS = ("sensor_weights", "sensor_spectra", "sensor_norm_sq")
+_PARAM_NAMES = SuperformulaParams.names()
 
 
 def save_library(library: Library, path: str | os.PathLike[str]) -> None:
@@ -67,7 +68,7 @@ def save_library(library: Library, path: str | os.PathLike[str]) -> None:
         "version": LIBRARY_VERSION,
         "rockscan": __version__,
         "names": list(library.names),
-        "params": [p.as_dict() if p is not None else None for p in library.params],
+        "params": [_params_dict(p) for p in library.params],
         "face": library.face_config.to_dict(),
     }
     cutoff_arrays = {}
@@ -94,6 +95,12 @@ def save_library(library: Library, path: str | os.PathLike[str]) -> None:
     }
     with atomic_file(path, what="library") as fh:
         np.savez(fh, **arrays)
+
+
+def _params_dict(params: SuperformulaParams | None) -> dict[str, float] | None:
+    """``params.as_dict()``: the same dictionary, without dataclasses.asdict's deep copy
+    (a third of a second for 10,000 shapes)."""
+    return None if params is None else {name: getattr(params, name) for name in _PARAM_NAMES}
 
 
 def load_library(path: str | os.PathLike[str]) -> Library:
