@@ -318,7 +318,7 @@ def test_a_dask_cluster_gives_the_same_report(folder, reference, tmp_path):
 
     root, _, _ = folder
     report = tmp_path / "report.csv"
-    with LocalCluster(n_workers=1, threads_per_worker=2, processes=False, dashboard_address=None) as cluster:
+    with LocalCluster(n_workers=2, threads_per_worker=1, processes=False, dashboard_address=None) as cluster:
         result = CliRunner().invoke(
             main, ["triage", str(root), "-o", str(report), "--scheduler", cluster.scheduler_address]
         )
