@@ -164,8 +164,10 @@ def segment(
         index, probability = choose(*zip(*candidates, strict=True))
         if probability >= FAST_PROBABILITY:
             return candidates[index][0]
-    candidates = candidates + pool.refined()
-    index, _ = choose(*zip(*candidates, strict=True))
+    refined = pool.refined()
+    precise = [True] * len(candidates) + [False] * len(refined)
+    candidates = candidates + refined
+    index, _ = choose(*zip(*candidates, strict=True), precise)
     return candidates[index][0]
 
 
@@ -227,13 +229,16 @@ def _candidate_pool(
             if found is not None:
                 return found
             continue
+        rivals_seen = bool(pool)
         for candidate in _candidates(detection):
             found = outline(candidate)
             if found is None:
                 continue
             # Fast path: an outline the photo supports all round, of a rock
-            # that stood out clearly from every other region, needs no rival.
-            if fast and found.rocks[0].score >= FAST_SCORE and _unrivalled(detection):
+            # that stood out clearly from every other region, needs no rival;
+            # in the first channel that shows a rock only (a later channel's
+            # rival to the first's outlines is for the choice to judge).
+            if fast and not rivals_seen and found.rocks[0].score >= FAST_SCORE and _unrivalled(detection):
                 return found
             pool.append((found, candidate.score))
             key = _choice_key(found, candidate.score)

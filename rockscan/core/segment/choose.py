@@ -133,30 +133,51 @@ def choice_probabilities(features: NDArray) -> NDArray[np.float64]:
     return 1.0 / (1.0 + np.exp(-t))
 
 
-def choose(candidates: Sequence[Segmentation], detection_scores: Sequence[float]) -> tuple[int, float]:
+def choose(
+    candidates: Sequence[Segmentation],
+    detection_scores: Sequence[float],
+    precise: Sequence[bool] | None = None,
+) -> tuple[int, float]:
     """Index of the candidate that outlines the rock, and the probability that it does.
 
-    The most probable candidate says which object the rock is; of the
+    The most probable candidate says which object the rock is. Of the
     candidates that outline the same object (IoU >= ``SAME_OBJECT`` with it),
-    the one whose outline the photo supports best wins (segmentation score,
-    a little for how clearly it was detected), so that a finer outline of
-    the same rock is not lost to a coarser one.
+    the precise ones are preferred (``precise``: outlines placed between
+    pixels, rather than cut on a reduced copy), and of those the one whose
+    outline the photo supports best (segmentation score, a little for how
+    clearly it was detected), so that a finer outline of the same rock is not
+    lost to a coarser one.
+
+    Parameters
+    ----------
+    candidates : sequence of Segmentation
+    detection_scores : sequence of float
+    precise : sequence of bool, optional
+        Which candidates are precise outlines (all, when not given).
+
+    Returns
+    -------
+    index : int
+    probability : float
+        The choice model's probability that the chosen candidate's object is
+        the rock (``probabilities[best]``).
     """
     features = choice_features(candidates, detection_scores)
     probabilities = choice_probabilities(features)
     best = int(np.argmax(probabilities))
     same = np.flatnonzero(_mutual_ious(candidates)[best] >= SAME_OBJECT)
+    if precise is not None and any(precise[k] for k in same):
+        same = np.array([k for k in same if precise[k]])
+    column = FEATURES.index("log_detection")
     support = [
-        math.log(max(candidates[k].rocks[0].score, 1e-12))
-        + _DETECTION_WEIGHT * features[k, FEATURES.index("log_detection")]
+        math.log(max(candidates[k].rocks[0].score, 1e-12)) + _DETECTION_WEIGHT * features[k, column]
         for k in same
     ]
-    chosen = int(same[int(np.argmax(support))])
-    return chosen, float(probabilities[chosen])
+    return int(same[int(np.argmax(support))]), float(probabilities[best])
 
 
 #: Intersection over union from which two candidates outline the same object.
-SAME_OBJECT = 0.9
+SAME_OBJECT = 0.95
 #: Weight of the log detection score beside the log segmentation score among
 #: outlines of the same object (a tenth of the detection score costs a quarter).
 _DETECTION_WEIGHT = 0.125
