@@ -145,3 +145,34 @@ def test_a_rock_below_the_confident_score_is_never_interesting(monkeypatch, defa
     rock = classify_image(pixels, default_lib)[0]
     assert not rock.match.interesting and rock.match.match is None
     assert rock.match.nearest == "circle"
+
+
+# ---------------------------------------------------------------- blobs of an outlined rock
+
+
+def _blob_grid():
+    return np.mgrid[:200, :260]
+
+
+def test_an_outline_of_two_touching_disks_is_cut_into_the_two():
+    from rockscan.core.segment.split import split_blobs
+
+    rr, cc = _blob_grid()
+    left = (rr - 100) ** 2 + (cc - 90) ** 2 <= 40**2
+    right = (rr - 100) ** 2 + (cc - 165) ** 2 <= 38**2
+    parts = split_blobs(left | right)
+    assert len(parts) == 2
+    # Each part is one disk, up to the pixels along the cut.
+    for part, disk in zip(sorted(parts, key=lambda p: np.nonzero(p)[1].mean()), (left, right), strict=True):
+        assert (part & disk).sum() / (part | disk).sum() > 0.95
+
+
+@pytest.mark.parametrize(("arms", "amplitude"), [(5, 0.4), (6, 0.35), (3, 0.3), (4, 0.45), (4, 0.6)])
+def test_a_star_and_a_disk_stay_whole(arms, amplitude):
+    from rockscan.core.segment.split import split_blobs
+
+    rr, cc = _blob_grid()
+    angle = np.arctan2(rr - 100, cc - 130)
+    star = np.hypot(rr - 100, cc - 130) <= 55 * (1 + amplitude * np.cos(arms * angle))
+    assert len(split_blobs(star)) == 1
+    assert len(split_blobs(np.hypot(rr - 100, cc - 130) <= 50)) == 1

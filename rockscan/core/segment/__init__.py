@@ -94,7 +94,7 @@ from rockscan.core.errors import NoRockFoundError, ParameterError
 from rockscan.core.segment.channels import _LUMA, _at_scale, _channels, _check_pixels, _pyramid, _unit
 from rockscan.core.segment.choose import choose
 from rockscan.core.segment.detect import _detect, _Detection, _luminance_polarity
-from rockscan.core.segment.split import split_necks, territories
+from rockscan.core.segment.split import split_blobs, split_necks, territories
 from rockscan.core.segment.trace import _disk, _fill_holes, _from_alpha, _outline_rock, _scored
 from rockscan.core.segment.types import CONFIDENT_SCORE, RockMask, Segmentation, SegmentConfig
 
@@ -227,7 +227,7 @@ def _candidate_pool(
         if all_rocks:
             found = outline(detection)
             if found is not None:
-                return found
+                return _blobs_parted(found)
             continue
         rivals_seen = bool(pool)
         for candidate in _candidates(detection):
@@ -372,6 +372,27 @@ class _Outliner:
             )
             self.works[id(refined)] = (work, up, detection)
             yield refined
+
+
+def _blobs_parted(found: Segmentation) -> Segmentation:
+    """Every outlined rock that is several compact blobs cut into them (``split.split_blobs``).
+
+    A blob keeps the coverage of its territory within the rock's window and
+    the score of the outline it was cut from.
+    """
+    rocks = []
+    for rock in found.rocks:
+        blobs = split_blobs(rock.mask)
+        if len(blobs) == 1:
+            rocks.append(rock)
+            continue
+        owners = territories(blobs)
+        for index, blob in enumerate(blobs, start=1):
+            coverage = (rock.coverage * (owners == index)).astype(np.float32)
+            rocks.append(dataclasses.replace(rock, mask=blob, coverage=coverage))
+    if len(rocks) == len(found.rocks):
+        return found
+    return _assemble(rocks, found.labels.shape, found.scale_rowcol, found.polarity, found.channel)
 
 
 def _assemble(

@@ -28,7 +28,7 @@ from collections.abc import Callable
 import numpy as np
 from numpy.typing import NDArray
 
-__all__ = ["split_necks", "split_rocks", "territories"]
+__all__ = ["split_blobs", "split_necks", "split_rocks", "territories"]
 
 #: A pass between two humps of contrast at least this share of the lower top
 #: joins them (texture on one rock); below it they are two rocks.
@@ -134,6 +134,37 @@ def split_rocks(
         full[r0:r1, c0:c1] = part
         out.append(full)
     return out
+
+
+#: Solidity under which an outlined rock is looked at again for touching blobs.
+BLOB_SOLIDITY = 0.9
+#: Smallest blob, as a share of the outlined rock's area.
+BLOB_MIN_SHARE = 0.1
+
+
+def split_blobs(mask: NDArray[np.bool_]) -> list[NDArray[np.bool_]]:
+    """An outlined rock that is several compact blobs cut at the necks between them.
+
+    The last look at a region that the cues of :func:`split_rocks`, judged on
+    the detection image, left whole: on the outline traced at working size,
+    a region that is not solid (solidity under ``BLOB_SOLIDITY``) is cut by
+    the shape cue (:func:`split_necks`) into blobs of at least
+    ``BLOB_MIN_SHARE`` of its area. A star's arms widen towards its body and
+    keep it whole; two touching rocks meet at a neck.
+
+    Parameters
+    ----------
+    mask : (rows, cols) ndarray of bool
+
+    Returns
+    -------
+    list of (rows, cols) ndarray of bool
+        The blobs, or ``[mask]``.
+    """
+    area = int(mask.sum())
+    if area < 50 or _solidity(mask) >= BLOB_SOLIDITY:
+        return [mask]
+    return split_necks(mask, BLOB_MIN_SHARE * area)
 
 
 def territories(regions: list[NDArray[np.bool_]]) -> NDArray[np.int32]:
