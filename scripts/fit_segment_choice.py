@@ -14,7 +14,7 @@ rule it replaces (segmentation score times detection score to the 1/8) and for
 an oracle that always takes the best candidate (what candidate generation
 allows).
 
-    python scripts/fit_segment_choice.py -n 20 --jobs 2 --cache /tmp/scenes
+    python scripts/fit_segment_choice.py -n 20 --jobs 2 --cache scene-cache
 """
 
 from __future__ import annotations
