@@ -95,7 +95,13 @@ def choice_features(candidates: Sequence[Segmentation], detection_scores: Sequen
     -------
     features : (n, len(FEATURES)) ndarray of float64
     """
-    ious = _mutual_ious(candidates)
+    return _features(candidates, detection_scores, _mutual_ious(candidates))
+
+
+def _features(
+    candidates: Sequence[Segmentation], detection_scores: Sequence[float], ious: NDArray[np.float64]
+) -> NDArray:
+    """:func:`choice_features`, given the candidates' mutual IoUs."""
     rows = []
     for k, (found, detected) in enumerate(zip(candidates, detection_scores, strict=True)):
         rock = found.rocks[0]
@@ -162,10 +168,11 @@ def choose(
         The choice model's probability that the chosen candidate's object is
         the rock (``probabilities[best]``).
     """
-    features = choice_features(candidates, detection_scores)
+    ious = _mutual_ious(candidates)
+    features = _features(candidates, detection_scores, ious)
     probabilities = choice_probabilities(features)
     best = int(np.argmax(probabilities))
-    same = np.flatnonzero(_mutual_ious(candidates)[best] >= SAME_OBJECT)
+    same = np.flatnonzero(ious[best] >= SAME_OBJECT)
     if precise is not None and any(precise[k] for k in same):
         same = np.array([k for k in same if precise[k]])
     column = FEATURES.index("log_detection")
