@@ -106,14 +106,19 @@ def test_calibration_is_reproducible_and_per_shape(small_lib):
 
 
 def test_samples_within_the_tolerance_are_accepted_and_far_shapes_rejected(small_lib):
+    # Enough samples that the shares are measured, not drawn: at 200 a share's
+    # standard error is under 2.5 points, and each bound lies 3 of them below
+    # what the calibration promises.
     rng = np.random.default_rng(4)
     for k, radii in enumerate(small_lib.radii):
         for noise in (0.0, 0.1, 0.2):
-            measured = simulate_radii(radii, np.full(20, noise), rng=rng)
+            measured = simulate_radii(radii, np.full(200, noise), rng=rng)
             matches = [match_radii(np.roll(r, 31 * k), small_lib) for r in measured]
-            assert all(m.nearest == small_lib.names[k] for m in matches)
-            # At the tolerance a cutoff keeps about 90% (the crowded star) to 97%.
-            assert sum(m.interesting for m in matches) >= (20 if noise <= 0.1 else 17), (k, noise)
+            assert np.mean([m.nearest == small_lib.names[k] for m in matches]) >= 0.97, (k, noise)
+            # At the tolerance a cutoff keeps about 90% (crowded shapes) to 97% of
+            # the calibration's own samples; a sample's noise is estimated, not known.
+            accepted = np.mean([m.interesting for m in matches])
+            assert accepted >= (0.98 if noise <= 0.1 else 0.8), (k, noise, accepted)
     far = shape_radii(SuperformulaParams(8, 8, 0.6, 3, 3), 360)
     m = match_radii(far, small_lib)
     assert not m.interesting and m.decided_by == "calibrated-cutoff"
