@@ -164,10 +164,8 @@ def segment(
         index, probability = choose(*zip(*candidates, strict=True))
         if probability >= FAST_PROBABILITY:
             return candidates[index][0]
-    refined = pool.refined()
-    precise = [True] * len(candidates) + [False] * len(refined)
-    candidates = candidates + refined
-    index, _ = choose(*zip(*candidates, strict=True), precise)
+    candidates = candidates + pool.refined()
+    index, _ = choose(*zip(*candidates, strict=True))
     return candidates[index][0]
 
 
@@ -177,16 +175,17 @@ FAST_PROBABILITY = 0.9
 
 @dataclass(frozen=True, eq=False)
 class _Pool:
-    """Candidate main rocks with their detection scores, and how to refine the best of them."""
+    """Candidate main rocks with their detection scores and sources (``choose.SOURCES``),
+    and how to refine the best of them."""
 
-    candidates: list[tuple[Segmentation, float]]
+    candidates: list[tuple[Segmentation, float, str]]
     outline: _Outliner
     incumbent: tuple[Segmentation, float]
 
-    def refined(self) -> list[tuple[Segmentation, float]]:
-        """GrabCut and the centre's Otsu class, started from the best-supported candidate."""
+    def refined(self) -> list[tuple[Segmentation, float, str]]:
+        """The other cues' outlines (``_Outliner.refined``), started from the best-supported candidate."""
         found, detection_score = self.incumbent
-        return [(refined, detection_score) for refined in self.outline.refined(found)]
+        return [(refined, detection_score, source) for source, refined in self.outline.refined(found)]
 
 
 def _candidate_pool(
@@ -219,7 +218,7 @@ def _candidate_pool(
         levels, arr.dtype, small.shape[:2], detect_covered, detect_scale, largest_scale, config
     )
     best: tuple[float, Segmentation, float] | None = None
-    pool: list[tuple[Segmentation, float]] = []
+    pool: list[tuple[Segmentation, float, str]] = []
     for channel in _channels(small):
         detection = _detect(channel.values(small), channel, config, all_rocks)
         if detection is None:
@@ -240,7 +239,7 @@ def _candidate_pool(
             # rival to the first's outlines is for the choice to judge).
             if fast and not rivals_seen and found.rocks[0].score >= FAST_SCORE and _unrivalled(detection):
                 return found
-            pool.append((found, candidate.score))
+            pool.append((found, candidate.score, "detected"))
             key = _choice_key(found, candidate.score)
             if best is None or key > best[0]:
                 best = (key, found, candidate.score)
@@ -346,8 +345,11 @@ class _Outliner:
         self.works[id(found)] = (work, up, detection)
         return found
 
-    def refined(self, found: Segmentation) -> Iterator[Segmentation]:
-        """Other outlines of a found main rock: GrabCut from it, and the Otsu part under the centre."""
+    def refined(self, found: Segmentation) -> Iterator[tuple[str, Segmentation]]:
+        """Other outlines of a found main rock, each with its source (``choose.SOURCES``):
+        GrabCut from it and from boxes round it, the Otsu part and the watershed
+        basin under the frame's centre, the basin of its core, and those
+        outlines with touching pebbles opened off."""
         work, up, detection = self.works[id(found)]
         rock = found.rocks[0]
         to_row = np.minimum(
@@ -356,12 +358,24 @@ class _Outliner:
         to_col = np.minimum(
             ((np.arange(work.shape[1]) + 0.5) / up[1]).astype(np.int64), self.small_shape[1] - 1
         )
-        masks = [_grabcut(work, self.dtype, rock), _centre_part(work, self.dtype)]
+        gradient = _colour_gradient(work, self.dtype)
+        core = _core_basin(gradient, rock)
+        masks = [
+            ("grabcut", _grabcut(work, self.dtype, rock)),
+            ("centre-otsu", _centre_part(work, self.dtype)),
+            ("centre-basin", _centre_basin(gradient)),
+            ("core-basin", core),
+            ("opened", _opened(_whole(rock, work.shape[:2]))),
+            ("opened-core", _opened(core) if core is not None else None),
+        ]
         if self.config.polarity == "auto":
             # A box's GrabCut knows no polarity: it stays out when the user set one.
-            masks += [_grabcut_box(work, self.dtype, box) for box in _boxes(rock, work.shape[:2])]
-        for mask in masks:
-            if mask is None or not mask.any():
+            boxes = zip(_BOX_NAMES, _boxes(rock, work.shape[:2]), strict=True)
+            masks += [(name, _grabcut_box(work, self.dtype, box)) for name, box in boxes]
+        # A rock is no smaller than the detection's smallest region may be.
+        least = self.config.min_area_fraction * work.shape[0] * work.shape[1]
+        for source, mask in masks:
+            if mask is None or mask.sum() < least:
                 continue
             candidate = RockMask(mask=mask, coverage=mask.astype(np.float32), origin_rowcol=(0, 0))
             candidate = _cropped(
@@ -371,7 +385,15 @@ class _Outliner:
                 [candidate], work.shape[:2], found.scale_rowcol, found.polarity, found.channel
             )
             self.works[id(refined)] = (work, up, detection)
-            yield refined
+            yield source, refined
+
+
+def _whole(rock: RockMask, shape: tuple[int, int]) -> NDArray[np.bool_]:
+    """A rock's mask over the whole working image."""
+    whole = np.zeros(shape, bool)
+    r0, c0 = rock.origin_rowcol
+    whole[r0 : r0 + rock.mask.shape[0], c0 : c0 + rock.mask.shape[1]] = rock.mask
+    return whole
 
 
 def _blobs_parted(found: Segmentation) -> Segmentation:
@@ -490,6 +512,8 @@ def _boxes(rock: RockMask, shape: tuple[int, int]) -> list[tuple[int, int, int, 
 
 #: How far the boxes round an outline reach beyond it, in units of its longer side.
 _BOX_GROW = (0.25, 0.6)
+#: Sources of the boxes' GrabCut outlines, in the order ``_boxes`` gives them.
+_BOX_NAMES = ("box-near", "box-far", "box-frame")
 
 
 def _grabcut_box(
@@ -566,3 +590,123 @@ def _centre_part(work: NDArray[np.generic], dtype: np.dtype) -> NDArray[np.bool_
         if part[rows // 2, cols // 2]:
             return part
     return region
+
+
+def _colour_gradient(work: NDArray[np.generic], dtype: np.dtype) -> NDArray[np.float32]:
+    """The largest over the colour channels of the Sobel gradient's length, after a little smoothing."""
+    import cv2
+
+    image = _unit(work, dtype)
+    if image.ndim == 2:
+        image = image[..., None]
+    gradient = np.zeros(image.shape[:2], np.float32)
+    for c in range(image.shape[2]):
+        smooth = cv2.GaussianBlur(np.ascontiguousarray(image[..., c], np.float32), (0, 0), _WATERSHED_SIGMA)
+        gx = cv2.Sobel(smooth, cv2.CV_32F, 1, 0, ksize=3)
+        gy = cv2.Sobel(smooth, cv2.CV_32F, 0, 1, ksize=3)
+        np.maximum(gradient, np.hypot(gx, gy), out=gradient)
+    return gradient
+
+
+def _basin(
+    gradient: NDArray[np.float32], inner: NDArray[np.bool_], outer: NDArray[np.bool_]
+) -> NDArray[np.bool_] | None:
+    """What a watershed of the gradient floods from ``inner`` against ``outer``.
+
+    The two floods meet on the strongest closed edge between the markers:
+    rocks that touch are told apart by the edge between them even where they
+    share a colour, and a soft shadow's edge gives way to the rock's sharp one.
+    None when either marker is empty.
+    """
+    from skimage.segmentation import watershed
+
+    markers = np.zeros(gradient.shape, np.int32)
+    markers[outer] = 2
+    markers[inner] = 1
+    if not (markers == 1).any() or not (markers == 2).any():
+        return None
+    basin = watershed(gradient, markers) == 1
+    if not basin.any():
+        return None
+    # A basin whose edge is no edge (a flood over flat ground) is no outline.
+    import cv2
+
+    edge = basin ^ (cv2.erode(basin.astype(np.uint8), np.ones((3, 3), np.uint8)) > 0)
+    flat = gradient.ravel()
+    top = max(1, flat.size // 100)
+    strongest = float(np.partition(flat, flat.size - top)[flat.size - top :].mean())
+    if not float(gradient[edge].mean()) >= _EDGE_FLOOR * strongest:
+        return None
+    return _fill_holes(basin)
+
+
+def _centre_basin(gradient: NDArray[np.float32]) -> NDArray[np.bool_] | None:
+    """The basin of a disk at the frame's centre (a crop is centred on its rock)."""
+    rows, cols = gradient.shape
+    yy, xx = np.ogrid[:rows, :cols]
+    radius = max(1.0, _WATERSHED_MARKER * min(rows, cols))
+    inner = (yy - (rows - 1) / 2) ** 2 + (xx - (cols - 1) / 2) ** 2 <= radius**2
+    border = np.zeros(gradient.shape, bool)
+    border[0, :] = border[-1, :] = border[:, 0] = border[:, -1] = True
+    return _basin(gradient, inner, border)
+
+
+def _core_basin(gradient: NDArray[np.float32], rock: RockMask) -> NDArray[np.bool_] | None:
+    """The basin of an outline's core (round its deepest point) against the ground well outside it
+    (the frame's border is no marker: a rock the frame cuts keeps its edge along it).
+
+    When the outline joined the rock to pebbles that touch it, or left out a
+    shaded side, the core still lies in the rock (the largest blob), and
+    the flood from it stops at the rock's own edge.
+    """
+    import cv2
+
+    mask = _whole(rock, gradient.shape).astype(np.uint8)
+    depth = cv2.distanceTransform(np.pad(mask, 1), cv2.DIST_L2, 5)[1:-1, 1:-1]
+    deepest = float(depth.max())
+    if deepest < 2.0:
+        return None
+    inner = depth >= _CORE_SHARE * deepest
+    # Keep only the core's part round the deepest point.
+    _, parts = cv2.connectedComponents(inner.astype(np.uint8), connectivity=8)
+    inner = parts == parts[np.unravel_index(int(np.argmax(depth)), depth.shape)]
+    radius = math.sqrt(max(rock.area, 1) / math.pi)
+    reach = _disk(max(2, round(_CORE_REACH * radius)))
+    outer = cv2.dilate(mask, reach) == 0
+    return _basin(gradient, inner, outer)
+
+
+#: Gaussian smoothing before the watersheds' gradient, working pixels.
+_WATERSHED_SIGMA = 1.0
+#: Least mean gradient along a basin's edge, as a share of the mean of the
+#: photo's strongest 1%: every basin of the development photos had at least 0.48.
+_EDGE_FLOOR = 0.2
+#: Radius of the centre basin's marker, as a share of the frame's shorter side.
+_WATERSHED_MARKER = 0.05
+#: An outline's core: where its distance to the ground is at least this share of the deepest.
+_CORE_SHARE = 0.6
+#: The ground marker of the core basin lies this far outside the outline, in equivalent radii.
+_CORE_REACH = 0.6
+
+
+def _opened(mask: NDArray[np.bool_]) -> NDArray[np.bool_] | None:
+    """The mask opened by a disk of a fifth of its equivalent radius, its largest part kept.
+
+    Pebbles that touch a rock join it at contacts narrower than they are:
+    the opening takes them off and leaves the rock's own edge where it is.
+    """
+    import cv2
+
+    radius = math.sqrt(max(int(mask.sum()), 1) / math.pi)
+    size = round(_OPEN_SHARE * radius)
+    if size < 2:
+        return None
+    opened = cv2.morphologyEx(mask.astype(np.uint8), cv2.MORPH_OPEN, _disk(size))
+    count, labels, stats, _ = cv2.connectedComponentsWithStats(opened, connectivity=4)
+    if count < 2:
+        return None
+    return labels == 1 + int(np.argmax(stats[1:, cv2.CC_STAT_AREA]))
+
+
+#: Radius of the opening that takes touching pebbles off an outline, in its equivalent radii.
+_OPEN_SHARE = 0.2

@@ -38,6 +38,25 @@ from rockscan.core.segment.types import Segmentation
 
 __all__ = ["FEATURES", "choice_features", "choice_probabilities", "choose"]
 
+#: Where a candidate comes from: the detection's own threshold outlines
+#: ("detected", placed between pixels), then the other cues of
+#: ``rockscan.core.segment`` (GrabCut from the outline and from three boxes,
+#: the Otsu class and the watershed basin under the frame's centre, the basin
+#: of the outline's core, and two outlines with touching pebbles opened off).
+#: Each cue has a column of its own: the model learns how far each is to be trusted.
+SOURCES = (
+    "detected",
+    "grabcut",
+    "centre-otsu",
+    "centre-basin",
+    "core-basin",
+    "opened",
+    "opened-core",
+    "box-near",
+    "box-far",
+    "box-frame",
+)
+
 #: Names of the columns of :func:`choice_features`.
 FEATURES = (
     "logit_score",
@@ -51,6 +70,7 @@ FEATURES = (
     "covers_centre",
     "log_area",
     "consensus",
+    *(f"from_{source}" for source in SOURCES[1:]),
 )
 
 #: Side of the common grid candidates are compared on (they may come from
@@ -61,8 +81,12 @@ _CONSENSUS_OF = 3
 
 #: Logistic weights of :data:`FEATURES` and the intercept, fitted by
 #: ``scripts/fit_segment_choice.py`` on the benchmark's development part.
-WEIGHTS = np.array([0, 2.797, 0, 0, 0, -16.82, 0, -1.052, 0, 0.1617, 7.634], dtype=np.float64)
-INTERCEPT = -8.63
+WEIGHTS = np.array(
+    [0.04327, 10.09, 7.761, 0, 0, -20.92, 0, -1.746, 0, 0.2078, 7.198]
+    + [0.5359, -1.796, 0.525, 0.09894, 0.346, 0.452, 0.3927, 0.4525, 0.7688],
+    dtype=np.float64,
+)
+INTERCEPT = -15.44
 
 
 def _grid_mask(found: Segmentation) -> NDArray[np.bool_]:
@@ -81,7 +105,11 @@ def _mutual_ious(candidates: Sequence[Segmentation]) -> NDArray[np.float64]:
     return np.divide(inter, union, out=np.zeros_like(inter), where=union > 0)
 
 
-def choice_features(candidates: Sequence[Segmentation], detection_scores: Sequence[float]) -> NDArray:
+def choice_features(
+    candidates: Sequence[Segmentation],
+    detection_scores: Sequence[float],
+    sources: Sequence[str] | None = None,
+) -> NDArray:
     """The choice features of each candidate's main rock (module docstring).
 
     Parameters
@@ -90,18 +118,34 @@ def choice_features(candidates: Sequence[Segmentation], detection_scores: Sequen
         Candidate segmentations of one photo; rock 1 of each is its main rock.
     detection_scores : sequence of float
         How clearly each candidate's region stood out when detected.
+    sources : sequence of str, optional
+        Where each candidate comes from (:data:`SOURCES`); "detected" for all
+        when not given.
 
     Returns
     -------
     features : (n, len(FEATURES)) ndarray of float64
     """
-    return _features(candidates, detection_scores, _mutual_ious(candidates))
+    sources = _sources(sources, len(candidates))
+    return _features(candidates, detection_scores, sources, _mutual_ious(candidates))
+
+
+def _sources(sources: Sequence[str] | None, n: int) -> list[str]:
+    if sources is None:
+        return ["detected"] * n
+    unknown = set(sources) - set(SOURCES)
+    if unknown or len(sources) != n:
+        raise ValueError(f"one source per candidate, each one of {SOURCES}")
+    return list(sources)
 
 
 def _features(
-    candidates: Sequence[Segmentation], detection_scores: Sequence[float], ious: NDArray[np.float64]
+    candidates: Sequence[Segmentation],
+    detection_scores: Sequence[float],
+    sources: list[str],
+    ious: NDArray[np.float64],
 ) -> NDArray:
-    """:func:`choice_features`, given the candidates' mutual IoUs."""
+    """:func:`choice_features`, given the candidates' sources and mutual IoUs."""
     rows = []
     for k, (found, detected) in enumerate(zip(candidates, detection_scores, strict=True)):
         rock = found.rocks[0]
@@ -128,6 +172,7 @@ def _features(
                 float(mask[h // 2, w // 2]),
                 math.log(max(share, 1e-6)),
                 consensus,
+                *(float(sources[k] == source) for source in SOURCES[1:]),
             ]
         )
     return np.array(rows, dtype=np.float64).reshape(len(candidates), len(FEATURES))
@@ -142,24 +187,25 @@ def choice_probabilities(features: NDArray) -> NDArray[np.float64]:
 def choose(
     candidates: Sequence[Segmentation],
     detection_scores: Sequence[float],
-    precise: Sequence[bool] | None = None,
+    sources: Sequence[str] | None = None,
 ) -> tuple[int, float]:
     """Index of the candidate that outlines the rock, and the probability that it does.
 
     The most probable candidate says which object the rock is. Of the
     candidates that outline the same object (IoU >= ``SAME_OBJECT`` with it),
-    the precise ones are preferred (``precise``: outlines placed between
-    pixels, rather than cut on a reduced copy), and of those the one whose
-    outline the photo supports best (segmentation score, a little for how
-    clearly it was detected), so that a finer outline of the same rock is not
-    lost to a coarser one.
+    the detection's own outlines are preferred (placed between pixels, where
+    the other cues cut on a reduced copy), and of those the one whose outline
+    the photo supports best (segmentation score, a little for how clearly it
+    was detected), so that a finer outline of the same rock is not lost to a
+    coarser one.
 
     Parameters
     ----------
     candidates : sequence of Segmentation
     detection_scores : sequence of float
-    precise : sequence of bool, optional
-        Which candidates are precise outlines (all, when not given).
+    sources : sequence of str, optional
+        Where each candidate comes from (:data:`SOURCES`); "detected" for all
+        when not given.
 
     Returns
     -------
@@ -168,13 +214,15 @@ def choose(
         The choice model's probability that the chosen candidate's object is
         the rock (``probabilities[best]``).
     """
+    sources = _sources(sources, len(candidates))
     ious = _mutual_ious(candidates)
-    features = _features(candidates, detection_scores, ious)
+    features = _features(candidates, detection_scores, sources, ious)
     probabilities = choice_probabilities(features)
     best = int(np.argmax(probabilities))
-    same = np.flatnonzero(ious[best] >= SAME_OBJECT)
-    if precise is not None and any(precise[k] for k in same):
-        same = np.array([k for k in same if precise[k]])
+    # The best is always among its own (a rock below the grid's cell has no IoU with itself).
+    same = np.union1d(np.flatnonzero(ious[best] >= SAME_OBJECT), [best])
+    if any(sources[k] == "detected" for k in same):
+        same = np.array([k for k in same if sources[k] == "detected"])
     column = FEATURES.index("log_detection")
     support = [
         math.log(max(candidates[k].rocks[0].score, 1e-12)) + _DETECTION_WEIGHT * features[k, column]
