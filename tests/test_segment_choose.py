@@ -8,7 +8,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from rockscan.core.segment import segment
-from rockscan.core.segment.choose import FEATURES, SAME_OBJECT, choice_features, choose
+from rockscan.core.segment.choose import FEATURES, SAME_OBJECT, SOURCES, choice_features, choose
 from rockscan.core.segment.split import _solidity
 from rockscan.core.segment.types import RockMask, Segmentation
 
@@ -117,3 +117,20 @@ def test_segment_takes_the_chosen_candidate_on_a_photo_with_a_neighbour_at_the_e
     scale = found.scale_rowcol
     assert scale == (1.0, 1.0)
     assert (main & truth).sum() / (main | truth).sum() > 0.9
+
+
+def test_each_source_has_its_own_column_and_unknown_sources_are_refused():
+    found = [candidate(disk(60, 80, 20)), candidate(disk(60, 80, 20))]
+    features = choice_features(found, [1.0, 1.0], ["detected", "centre-basin"])
+    columns = features[:, -(len(SOURCES) - 1) :]
+    np.testing.assert_array_equal(columns[0], 0.0)
+    assert columns[1].sum() == 1.0 and columns[1][SOURCES.index("centre-basin") - 1] == 1.0
+    with pytest.raises(ValueError, match="one source per candidate"):
+        choose(found, [1.0, 1.0], ["detected", "watershed"])
+    with pytest.raises(ValueError, match="one source per candidate"):
+        choose(found, [1.0, 1.0], ["detected"])
+
+
+def test_of_outlines_of_one_object_the_detected_is_kept():
+    found = [candidate(disk(60, 80, 20.3), score=0.95), candidate(disk(60, 80, 20), score=0.9)]
+    assert choose(found, [1.0, 1.0], ["box-frame", "detected"])[0] == 1

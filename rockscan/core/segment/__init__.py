@@ -666,10 +666,11 @@ def _core_basin(gradient: NDArray[np.float32], rock: RockMask) -> NDArray[np.boo
     deepest = float(depth.max())
     if deepest < 2.0:
         return None
-    inner = depth >= _CORE_SHARE * deepest
-    # Keep only the core's part round the deepest point.
-    _, parts = cv2.connectedComponents(inner.astype(np.uint8), connectivity=8)
-    inner = parts == parts[np.unravel_index(int(np.argmax(depth)), depth.shape)]
+    # A disk round the deepest point: the region's other deep parts may lie
+    # across the rock's edge (the middle of a rock and its shadow together).
+    row, col = np.unravel_index(int(np.argmax(depth)), depth.shape)
+    yy, xx = np.ogrid[: depth.shape[0], : depth.shape[1]]
+    inner = (yy - row) ** 2 + (xx - col) ** 2 <= (_CORE_SHARE * deepest) ** 2
     radius = math.sqrt(max(rock.area, 1) / math.pi)
     reach = _disk(max(2, round(_CORE_REACH * radius)))
     outer = cv2.dilate(mask, reach) == 0
@@ -683,8 +684,8 @@ _WATERSHED_SIGMA = 1.0
 _EDGE_FLOOR = 0.2
 #: Radius of the centre basin's marker, as a share of the frame's shorter side.
 _WATERSHED_MARKER = 0.05
-#: An outline's core: where its distance to the ground is at least this share of the deepest.
-_CORE_SHARE = 0.6
+#: Radius of an outline's core round its deepest point, as a share of that depth.
+_CORE_SHARE = 0.3
 #: The ground marker of the core basin lies this far outside the outline, in equivalent radii.
 _CORE_REACH = 0.6
 

@@ -82,11 +82,13 @@ _CONSENSUS_OF = 3
 #: Logistic weights of :data:`FEATURES` and the intercept, fitted by
 #: ``scripts/fit_segment_choice.py`` on the benchmark's development part.
 WEIGHTS = np.array(
-    [0.04327, 10.09, 7.761, 0, 0, -20.92, 0, -1.746, 0, 0.2078, 7.198]
-    + [0.5359, -1.796, 0.525, 0.09894, 0.346, 0.452, 0.3927, 0.4525, 0.7688],
+    [
+        *(0.04466, 9.896, 7.564, 0, 0, -20.74, 0, -1.778, 0, 0.1985, 7.3),
+        *(0.5449, -1.793, 0.5111, 0.1142, 0.348, 0.5002, 0.3957, 0.456, 0.7742),  # sources
+    ],
     dtype=np.float64,
 )
-INTERCEPT = -15.44
+INTERCEPT = -15.37
 
 
 def _grid_mask(found: Segmentation) -> NDArray[np.bool_]:

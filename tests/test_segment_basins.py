@@ -1,0 +1,100 @@
+"""The watershed basins and the opening among the candidate outlines (rockscan.core.segment)."""
+
+from __future__ import annotations
+
+import numpy as np
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from rockscan.core.segment import _basin, _centre_basin, _colour_gradient, _core_basin, _opened
+from rockscan.core.segment.types import RockMask
+
+
+def dome(shape, centre, radius, level=0.35):
+    """A lit dome: darkest at its rim, as a rounded rock is, so two that touch show an edge."""
+    rr, cc = np.mgrid[: shape[0], : shape[1]]
+    d = np.hypot(rr - centre[0], cc - centre[1]) / radius
+    inside = d < 1.0
+    shade = np.where(inside, level + 0.25 * np.sqrt(np.clip(1.0 - d**2, 0.0, 1.0)), 0.0)
+    return inside, shade
+
+
+def photo_of_domes(shape, domes, ground=0.85, seed=0):
+    image = np.full(shape, ground)
+    masks = []
+    for centre, radius in domes:
+        inside, shade = dome(shape, centre, radius)
+        image[inside] = shade[inside]
+        masks.append(inside)
+    rng = np.random.default_rng(seed)
+    return np.clip(image + rng.normal(0.0, 0.01, shape), 0.0, 1.0).astype(np.float32), masks
+
+
+def iou(a, b):
+    return (a & b).sum() / (a | b).sum()
+
+
+def test_the_centre_basin_parts_a_rock_from_the_touching_neighbours_of_its_crop():
+    # A crop centred on one rock, two rocks of its colour touching it: a
+    # threshold joins all three, the edge between them still parts them.
+    shape = (120, 120)
+    image, (centre, *_neighbours) = photo_of_domes(shape, [((60, 60), 30), ((60, 8), 23), ((8, 95), 26)])
+    joined = image < 0.7
+    assert iou(joined, centre) < 0.7
+    basin = _centre_basin(_colour_gradient(image, np.dtype(np.float32)))
+    assert basin is not None
+    assert iou(basin, centre) > 0.9
+
+
+def test_the_core_basin_leaves_out_a_soft_cast_shadow():
+    # A dark rock and its shadow (darker ground, a soft penumbra): a threshold
+    # joins them; from the rock's core the flood stops at the rock's sharp edge.
+    from scipy import ndimage
+
+    shape = (160, 200)
+    rr, cc = np.mgrid[: shape[0], : shape[1]]
+    rock = np.hypot(rr - 80, cc - 70) < 35
+    shadow = ndimage.gaussian_filter((np.hypot(rr - 90, (cc - 100) / 1.3) < 30).astype(float), 6.0)
+    image = 0.85 - 0.3 * shadow
+    image[rock] = 0.25
+    image = image.astype(np.float32)
+    joined = image < 0.7
+    assert iou(joined, rock) < 0.8
+    whole = RockMask(mask=joined, coverage=joined.astype(np.float32), origin_rowcol=(0, 0))
+    basin = _core_basin(_colour_gradient(image, np.dtype(np.float32)), whole)
+    assert basin is not None and iou(basin, rock) > 0.95
+
+
+def test_opening_takes_off_pebbles_that_touch_the_rock():
+    # Pebbles under a fifth of the rock's radius: the opening's disk fits in no one of them.
+    shape = (160, 160)
+    image, (rock, *pebbles) = photo_of_domes(
+        shape, [((80, 80), 40), ((80, 126), 7), ((33, 80), 8), ((117, 107), 6)]
+    )
+    joined = image < 0.7
+    assert iou(joined, rock) < 0.95
+    opened = _opened(joined)
+    assert opened is not None and iou(opened, rock) > 0.95
+    assert not any((opened & p).sum() > 0.2 * p.sum() for p in pebbles)
+
+
+def test_a_basin_over_flat_ground_is_no_outline():
+    # Nothing but flat ground round the centre: the flood stops nowhere in particular.
+    gradient = np.zeros((80, 100), np.float32)
+    gradient[:, :3] = 1.0  # a rock cut by the frame, far from the centre
+    assert _centre_basin(gradient) is None
+    inner = np.zeros(gradient.shape, bool)
+    inner[40, 50] = True
+    assert _basin(gradient, inner, np.zeros(gradient.shape, bool)) is None  # no ground marker
+
+
+@settings(max_examples=25, deadline=None)
+@given(radius=st.integers(12, 40), row=st.integers(-15, 15), col=st.integers(-15, 15))
+def test_opening_keeps_a_disk_whole_and_in_place(radius, row, col):
+    rr, cc = np.mgrid[:120, :120]
+    disk = (rr - 60 - row) ** 2 + (cc - 60 - col) ** 2 <= radius**2
+    opened = _opened(disk)
+    assert opened is not None
+    # A disk is open already: only the digital disk's corner pixels may go.
+    assert not (opened & ~disk).any()
+    assert opened.sum() >= 0.97 * disk.sum()
