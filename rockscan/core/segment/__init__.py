@@ -618,6 +618,7 @@ def _basin(
     share a colour, and a soft shadow's edge gives way to the rock's sharp one.
     None when either marker is empty.
     """
+    import cv2
     from skimage.segmentation import watershed
 
     markers = np.zeros(gradient.shape, np.int32)
@@ -629,8 +630,6 @@ def _basin(
     if not basin.any():
         return None
     # A basin whose edge is no edge (a flood over flat ground) is no outline.
-    import cv2
-
     edge = basin ^ (cv2.erode(basin.astype(np.uint8), np.ones((3, 3), np.uint8)) > 0)
     flat = gradient.ravel()
     top = max(1, flat.size // 100)

@@ -1,9 +1,10 @@
 """Which of several candidate outlines of the main rock is the rock.
 
-Candidates come from different cues (the hysteresis region in either
-polarity and channel, its runners-up, GrabCut from the outline and from
-boxes, the Otsu class under the frame's centre). Each is measured by what a
-person would look at:
+Candidates come from different cues (:data:`SOURCES`: the hysteresis region
+in either polarity and channel, its runners-up, GrabCut from the outline and
+from boxes, the Otsu class under the frame's centre, watershed basins from
+the centre and from the outline's core, outlines with touching pebbles
+opened off). Each is measured by what a person would look at:
 
 * how well the photo supports its outline (its segmentation score and the
   evidence behind it, ``rockscan.core.segment.score``);
@@ -15,6 +16,8 @@ person would look at:
   intersection over union with the three that overlap it most). Cues fail
   in different ways, a shaded side here, a highlight there, and mostly
   agree where they are right.
+* its **source**: one column per cue, so that the model learns how far each
+  cue is to be trusted.
 
 A logistic model of these features gives each candidate the probability
 that it outlines the rock (intersection over union >= 0.9), and the most
