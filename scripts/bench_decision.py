@@ -12,11 +12,13 @@ Library kinds
 -------------
 random-2, -5, -12, -50  ``random_superformula`` shapes, each at least
                         ``MIN_SPACING`` (matched-filter distance, RMS radius
-                        difference at mean radius 1) from the others
+                        difference at mean radius 1) from the others, built
+                        from their formulas as a spec is built
+default                 the built-in library, queried in as many runs (other
+                        seeds) as a random kind has libraries
 photo-blobs             irregular rocks (smooth random blobs) given by two
                         example photos each, built through a spec's
                         ``images = [...]`` as ``rockscan library build`` does
-default                 the built-in library
 
 Queries
 -------
@@ -237,7 +239,8 @@ def build(
         return Library.from_shapes(read_spec(default_spec_path())), shapes, []
     if kind.startswith("random-"):
         shapes = random_library(rng, int(kind.split("-")[1]))
-        lib = Library.from_radii([s.name for s in shapes], np.array([centered(s.radii) for s in shapes]))
+        # Built as `rockscan library build` builds a spec of Superformulas.
+        lib = Library.from_shapes([ShapeSpec(s.name, s.params) for s in shapes])
         return lib, shapes, []
     # photo-blobs: 8 irregular rocks, two example photos each, through a spec.
     shapes, specs = [], []
@@ -398,7 +401,12 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument(
         "--seed", type=int, default=HELD_OUT_SEED, help="base seed: 1000 development, 5000 held out"
     )
-    parser.add_argument("--libraries", type=int, default=3, help="libraries per random/blob kind (default 3)")
+    parser.add_argument(
+        "--libraries",
+        type=int,
+        default=3,
+        help="libraries per random/blob kind, query runs of the default library (default 3)",
+    )
     parser.add_argument(
         "-n", "--queries", type=int, default=24, help="radii-level queries per set and library"
     )
@@ -408,8 +416,8 @@ def main(argv: list[str] | None = None) -> int:
     start = time.perf_counter()
     tallies: dict[tuple[str, str], Tally] = {}
     for kind in args.kinds.split(","):
-        count = 1 if kind == "default" else args.libraries
-        for j in range(count):
+        # The default library is one library: queried as often as the others, with other seeds.
+        for j in range(args.libraries):
             evaluate(kind, args.seed + 100 * KINDS.index(kind) + j, args.queries, args.photos, tallies)
         print(f"  {kind}: done ({time.perf_counter() - start:.0f} s)", file=sys.stderr, flush=True)
     print(

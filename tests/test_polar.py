@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from hypothesis import given
+from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from rockscan.core.errors import ParameterError
@@ -12,6 +12,7 @@ from rockscan.core.polar import (
     contour_radii,
     polar_angles,
     polygon_centroid_xy,
+    radii_about,
     radii_to_xy,
     recenter_radii,
     rotate_radii,
@@ -116,3 +117,26 @@ def test_symmetry_is_read_from_the_radii(params, order):
     if order >= 1:
         # The shape really is unchanged by a turn of 360/order degrees.
         np.testing.assert_allclose(rotate_radii(radii, 360 / max(order, 1)), radii, atol=5e-3)
+
+
+@settings(max_examples=30, deadline=None)
+@given(
+    seed=st.integers(0, 2**32 - 1),
+    dx=st.floats(-0.3, 0.3),
+    dy=st.floats(-0.3, 0.3),
+)
+def test_radii_about_a_new_centre_are_contour_radii_from_there(seed, dx, dy):
+    # A smooth random outline, and its radii seen from a point inside it.
+    theta = polar_angles(120)
+    rng = np.random.default_rng(seed)
+    radii = 1.0 + 0.15 * np.cos(2 * theta + rng.uniform(0, 6)) + 0.1 * np.sin(3 * theta + rng.uniform(0, 6))
+    xy = np.column_stack([radii * np.cos(theta), radii * np.sin(theta)])
+    # In (row, col) about a frame centre at (0, 0): the new centre is at row -dy, col dx.
+    expected = contour_radii(rowcol_from_xy(xy, (0.0, 0.0)), (-dy, dx), 120)
+    got = radii_about(radii[None], np.array([[dx, dy]]))[0]
+    np.testing.assert_allclose(got, expected, rtol=1e-9, atol=1e-12)
+
+
+def test_radii_about_the_origin_change_nothing():
+    radii = shape_radii(SuperformulaParams(3, 3, 2, 5, 5), 90)
+    np.testing.assert_allclose(radii_about(radii[None], np.zeros((1, 2)))[0], radii, rtol=1e-12)

@@ -13,7 +13,10 @@ photo shows it: an outline of ``n_points`` vertices, each radius times
 ``tolerance``), at a random rotation that falls between the rays; the
 outline's centroid moves with the noise; segmentation then blurs the outline
 by about a pixel and jitters it by a fraction of one. :func:`simulate_radii`
-draws such measurements from any outline, all at once.
+draws such measurements from any outline, all at once. The radii the noise
+multiplies are those about a Superformula's own origin, which is not the
+centroid of a shape without point symmetry: a library built from formulas
+passes each shape's origin (``origins``).
 
 The distance that ranks and decides (:class:`SensorMetric`) compares log radii
 (the noise multiplies each radius, so in logs it is the same on every ray)
@@ -67,6 +70,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from rockscan.core.choices import DEFAULT_TOLERANCE
 from rockscan.core.errors import ParameterError
+from rockscan.core.polar import radii_about
 
 __all__ = [
     "CALIBRATION_VERSION",
@@ -169,6 +173,7 @@ def simulate_radii(
     *,
     model: SensorModel | None = None,
     rng: np.random.Generator | int | None = None,
+    origins: ArrayLike | None = None,
 ) -> NDArray[np.float64]:
     """Measurements of outlines as a photo and its segmentation would give them.
 
@@ -182,6 +187,12 @@ def simulate_radii(
     model : SensorModel, optional
         Its ``tolerance`` is not used here (``noise`` is).
     rng : numpy.random.Generator, int or None
+    origins : (2,) or (n_samples, 2) array_like of float, optional
+        The point each outline's noise is drawn about, (x, y) from its
+        centroid in units of its mean radius: the paper's noise multiplies a
+        Superformula's radii about the formula's own origin, which is not
+        the centroid of a shape without point symmetry (m = 1), and there
+        the noise is larger on the far side. Default: the centroid.
 
     Returns
     -------
@@ -212,6 +223,7 @@ def simulate_radii(
     m, n = truth.shape
     p = int(model.n_points)
     truth = truth / truth.mean(axis=1, keepdims=True)
+    truth, moved = _about_origins(truth, origins)
     offset = rng.random(m)
     # Vertex i sits at angle (i + offset) * 2 pi / p; its radius is read off the truth.
     position = (np.arange(p)[None, :] + offset[:, None]) * (n / p)
@@ -235,7 +247,12 @@ def simulate_radii(
     area = cross.sum(axis=1) / 2.0
     cx = ((x + x1) * cross).sum(axis=1) / (6.0 * area)
     cy = ((y + y1) * cross).sum(axis=1) / (6.0 * area)
-    measured = measured - (cx[:, None] * np.cos(theta) + cy[:, None] * np.sin(theta))
+    shift = ~moved
+    measured[shift] = measured[shift] - (cx[shift, None] * np.cos(theta) + cy[shift, None] * np.sin(theta))
+    if moved.any():
+        # A centroid far from the origin moves the rays too far for the first order.
+        measured[moved] = radii_about(measured[moved], np.column_stack([cx[moved], cy[moved]]))
+        measured[moved] /= measured[moved].mean(axis=1, keepdims=True)
     radius_px = rng.uniform(*model.radius_px, size=m)
     if model.blur_px > 0:
         freq = np.arange(n // 2 + 1)
@@ -245,6 +262,34 @@ def simulate_radii(
         )
     measured = measured + (model.jitter_px / radius_px)[:, None] * rng.standard_normal((m, n))
     return np.maximum(measured, 1e-3)
+
+
+def _about_origins(
+    truth: NDArray[np.float64], origins: ArrayLike | None
+) -> tuple[NDArray[np.float64], NDArray[np.bool_]]:
+    """The outlines' radii about their noise origins, and which of them moved there.
+
+    The noise is drawn about the origin, so the truth's radii are taken about it
+    first; an origin outside its outline (a shape deformed away from it) keeps
+    the centroid.
+    """
+    m = truth.shape[0]
+    moved = np.zeros(m, dtype=bool)
+    if origins is None:
+        return truth, moved
+    centre = np.broadcast_to(np.asarray(origins, dtype=np.float64), (m, 2))
+    if not np.all(np.isfinite(centre)):
+        raise ParameterError("origins must be finite (x, y) pairs, one per sample")
+    moved = np.any(centre != 0.0, axis=1)
+    if not moved.any():
+        return truth, moved
+    about = radii_about(truth[moved], centre[moved])
+    inside = np.all(about > 0.05, axis=1)
+    rows = np.flatnonzero(moved)
+    moved[rows[~inside]] = False
+    truth = truth.copy()
+    truth[rows[inside]] = about[inside]
+    return truth, moved
 
 
 @dataclass(frozen=True, eq=False)
@@ -644,6 +689,7 @@ def calibrate(
     seed: int = 0,
     keep_samples: bool = False,
     metric: SensorMetric | None = None,
+    origins: ArrayLike | None = None,
 ) -> Calibration:
     """Per-shape cutoffs of a library from its radii (see the module docstring).
 
@@ -674,12 +720,18 @@ def calibrate(
         Keep the simulated distances (for figures).
     metric : SensorMetric, optional
         ``SensorMetric.from_radii(radii, tolerance)`` when the caller has it already.
+    origins : (n_shapes, 2) array_like of float, optional
+        Per shape, the point its outline noise is drawn about, from its
+        centroid in units of its mean radius (:func:`simulate_radii`;
+        a library built from Superformulas gives each formula's origin).
+        Default: every centroid; a shape given by examples always uses its own.
 
     Returns
     -------
     Calibration
     """
     radii, example_list, n_samples, n_outside = _calibrate_iv(radii, examples, n_samples, n_outside)
+    centres = _origins_iv(origins, radii.shape[0])
     if not (0.5 < accept_quantile < 1 and 0 < reject_quantile < 0.5):
         raise ParameterError("accept_quantile must be in (0.5, 1) and reject_quantile in (0, 0.5)")
     base = model or SensorModel()
@@ -699,20 +751,11 @@ def calibrate(
         chosen = np.sort(rng.choice(n_shapes, size=max_shapes, replace=False))
     spacing, neighbour = _spacing(metric, radii, chosen)
     inside, inside_clean, outside = _simulate(
-        metric, radii, example_list, chosen, spacing, neighbour, n_samples, n_outside, model, rng
+        metric, radii, example_list, chosen, spacing, neighbour, n_samples, n_outside, model, rng, centres
     )
-    # Out-of-library shapes alternate: even columns measured clean, odd at the tolerance.
-    outside_clean, outside_noisy = outside[:, 0::2], outside[:, 1::2]
-    cut = np.empty(chosen.size)
-    clean_cut = np.empty(chosen.size)
-    crowded = np.zeros(chosen.size, dtype=bool)
-    for i in range(chosen.size):
-        cut[i], crowded[i] = _cutoff(inside[i], outside_noisy[i], accept_quantile, reject_quantile)
-        # A real outline is never quite its shape: a clean sample is allowed at
-        # least the distance the tolerated noise alone would put it at.
-        clean_cut[i], _ = _cutoff(
-            inside_clean[i], outside_clean[i], accept_quantile, reject_quantile, math.sqrt(metric.noise_floor)
-        )
+    cut, clean_cut, crowded = _both_ends(
+        inside, inside_clean, outside, accept_quantile, reject_quantile, math.sqrt(metric.noise_floor)
+    )
     # Shapes left out of a large library's sample take the median of those calibrated.
     cutoffs = _every_shape(cut, chosen, n_shapes, float(np.median(cut)))
     clean_cutoffs = _every_shape(clean_cut, chosen, n_shapes, float(np.median(clean_cut)))
@@ -732,6 +775,27 @@ def calibrate(
     )
 
 
+def _both_ends(
+    inside: NDArray[np.float64],
+    inside_clean: NDArray[np.float64],
+    outside: NDArray[np.float64],
+    accept_quantile: float,
+    reject_quantile: float,
+    floor: float,
+) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.bool_]]:
+    """Each shape's cutoff at the tolerance and clean, and whether it is crowded at the tolerance."""
+    # Out-of-library shapes alternate: even columns measured clean, odd at the tolerance.
+    outside_clean, outside_noisy = outside[:, 0::2], outside[:, 1::2]
+    n = inside.shape[0]
+    cut, clean_cut, crowded = np.empty(n), np.empty(n), np.zeros(n, dtype=bool)
+    for i in range(n):
+        cut[i], crowded[i] = _cutoff(inside[i], outside_noisy[i], accept_quantile, reject_quantile)
+        # A real outline is never quite its shape: a clean sample is allowed at
+        # least the distance the tolerated noise alone would put it at.
+        clean_cut[i], _ = _cutoff(inside_clean[i], outside_clean[i], accept_quantile, reject_quantile, floor)
+    return cut, clean_cut, crowded
+
+
 def _simulate(
     metric: SensorMetric,
     radii: NDArray[np.float64],
@@ -743,13 +807,14 @@ def _simulate(
     n_outside: int,
     model: SensorModel,
     rng: np.random.Generator,
+    centres: NDArray[np.float64],
 ) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
     """Distances of the simulated samples of the chosen shapes, 64 shapes at a time:
     in library at the tolerance, in library clean, and out of library."""
     rows: list[tuple[NDArray[np.float64], ...]] = []
     for start in range(0, chosen.size, 64):
         block = chosen[start : start + 64]
-        noisy_in, clean_in = _inside(metric, radii, example_list, block, n_samples, model, rng)
+        noisy_in, clean_in = _inside(metric, radii, example_list, block, n_samples, model, rng, centres)
         outside = _outside(
             metric,
             radii,
@@ -760,6 +825,7 @@ def _simulate(
             n_outside,
             model,
             rng,
+            centres,
         )
         rows.append((noisy_in, clean_in, outside))
     inside, inside_clean, outside = (np.concatenate([r[i] for r in rows]) for i in range(3))
@@ -823,6 +889,15 @@ def _calibrate_iv(
     return radii, example_list, int(n_samples), int(n_outside)
 
 
+def _origins_iv(origins: ArrayLike | None, n_shapes: int) -> NDArray[np.float64]:
+    if origins is None:
+        return np.zeros((n_shapes, 2))
+    centres = np.asarray(origins, dtype=np.float64)
+    if centres.shape != (n_shapes, 2) or not np.all(np.isfinite(centres)):
+        raise ParameterError("origins must be finite, (n_shapes, 2): one (x, y) per shape")
+    return centres
+
+
 def _spacing(
     metric: SensorMetric, radii: NDArray[np.float64], chosen: NDArray[np.int64]
 ) -> tuple[NDArray[np.float64], NDArray[np.int64]]:
@@ -865,20 +940,24 @@ def _inside(
     n_samples: int,
     model: SensorModel,
     rng: np.random.Generator,
+    centres: NDArray[np.float64],
 ) -> NDArray[np.float64]:
     """(len(block), n_samples) distances to their shape of measurements at the tolerance, and clean ones."""
-    picks = []
+    picks, about = [], []
     for k in block:
         sources = examples[k] if examples[k] is not None else radii[k][None]
         # Every example is a source in turn: the spread between them counts.
         picks.append(sources[np.arange(n_samples) % sources.shape[0]])
+        # An example photo's outline has no formula origin: its noise is about its centroid.
+        about.append(np.broadcast_to(centres[k] if examples[k] is None else 0.0, (n_samples, 2)))
     picked = np.concatenate(picks)
+    origins = np.concatenate(about)
     own = np.repeat(block, n_samples)
     # At the tolerance itself, the worst the library promises to accept; and
     # clean (the photo's blur and jitter only), where the cutoff's other end is.
     out = []
     for noise in (model.tolerance, 0.0):
-        measured = simulate_radii(picked, noise, model=model, rng=rng)
+        measured = simulate_radii(picked, noise, model=model, rng=rng, origins=origins)
         out.append(_scores(metric, measured, own).reshape(block.size, n_samples))
     return out[0], out[1]
 
@@ -901,6 +980,7 @@ def _outside(
     n_outside: int,
     model: SensorModel,
     rng: np.random.Generator,
+    centres: NDArray[np.float64],
 ) -> NDArray[np.float64]:
     """(len(block), n_outside) distances to shape k of shapes at the library's spacing around it.
 
@@ -945,7 +1025,8 @@ def _outside(
     shapes = np.exp(log_k[:, None, :] + amplitude[..., None] * fields).reshape(-1, n)
     # Even columns clean, odd at the tolerance: the two ends of the cutoff.
     noise = np.tile(np.arange(n_outside) % 2 * model.tolerance, b)
-    measured = simulate_radii(shapes, noise, model=model, rng=rng)
+    # Shapes around k are drawn like k, about k's noise origin.
+    measured = simulate_radii(shapes, noise, model=model, rng=rng, origins=centres[own])
     return _scores(metric, measured, own).reshape(b, n_outside)
 
 

@@ -43,7 +43,7 @@ from rockscan.core.information import (
     section_edges,
     section_probabilities,
 )
-from rockscan.core.polar import polar_angles, polygon_area_centroids, symmetry_order
+from rockscan.core.polar import polar_angles, polygon_area_centroids, radii_about, symmetry_order
 from rockscan.core.superformula import SuperformulaParams, degenerate_rays, log_superformula, shape_radii
 
 if TYPE_CHECKING:
@@ -56,6 +56,7 @@ __all__ = [
     "Library",
     "ShapeSpec",
     "closed_shapes_radii",
+    "noise_origins",
     "sanitize_name",
     "shape_radii",
     "shapes_radii",
@@ -283,7 +284,7 @@ class Library:
                 # (whose eigen solver leaves a core idle), the same numbers as in turn.
                 cutoffs = None
                 if calibration is None:
-                    cutoffs = pool.submit(_cutoffs, radii, examples, tolerance)
+                    cutoffs = pool.submit(_cutoffs, radii, examples, tolerance, noise_origins(params, radii))
                 basis = _basis(radii, config, face_array, n_components, exact_limit)
                 if cutoffs is not None:
                     metric, calibration = cutoffs.result()
@@ -384,7 +385,7 @@ class Library:
 
     @cached_property
     def _calibrated_on_use(self) -> Calibration:
-        return calibrate(self.radii)
+        return calibrate(self.radii, origins=noise_origins(self.params, np.asarray(self.radii)))
 
     @property
     def calibration_in_force(self) -> Calibration:
@@ -536,57 +537,77 @@ def _recentered(radii: NDArray[np.float64]) -> NDArray[np.float64]:
     """:func:`rockscan.core.polar.recenter_radii` of many outlines, (n, n_angles) -> (n, n_angles).
 
     The same steps: the area centroid of the rays' polygon and the farthest
-    crossing of every ray about it.
+    crossing of every ray about it. recenter_radii's dense outline puts its
+    points on the polygon's own edges, so the rays cross the same lines: the
+    polygon alone gives the same radii (to rounding, 1e-15) at an eighth of
+    the work.
     """
-    n_shapes, n_angles = radii.shape
-    theta = polar_angles(n_angles)
-    x, y = radii * np.cos(theta), radii * np.sin(theta)
-    _, cx, cy = polygon_area_centroids(x, y)
-    # recenter_radii's dense outline puts its points on the polygon's own edges, so
-    # the rays cross the same lines: the polygon alone gives the same radii
-    # (to rounding, 1e-15) at an eighth of the work.
-    px, py = x - cx[:, None], y - cy[:, None]
-    # polar.contour_radii, every outline's segments in one flat list.
-    qx, qy = np.roll(px, -1, axis=1).ravel(), np.roll(py, -1, axis=1).ravel()
-    n_points = px.shape[1]
-    px, py = px.ravel(), py.ravel()
-    step = 2.0 * np.pi / n_angles
-    phi = np.arctan2(y - cy[:, None], x - cx[:, None])
-    phi_p = phi.ravel()
-    # Each segment's end is the next one's start: its angle is the start's, rolled.
-    span = np.angle(np.exp(1j * (np.roll(phi, -1, axis=1).ravel() - phi_p)))
-    lo, hi = np.minimum(phi_p, phi_p + span), np.maximum(phi_p, phi_p + span)
-    first = np.ceil(lo / step - 1e-9).astype(np.int64)
-    count = np.maximum(np.floor(hi / step + 1e-9).astype(np.int64) - first + 1, 0)
-    seg = np.repeat(np.arange(px.size), count)
-    offsets = np.arange(seg.size) - np.repeat(np.cumsum(count) - count, count)
-    ray = first[seg] + offsets
-    # The rays' directions from a table over the whole rays met (the same numbers as
-    # the cosine and sine of every crossing's ray, for a fraction of the work).
-    low = int(ray.min()) if ray.size else 0
-    turns = np.arange(low, int(ray.max()) + 1 if ray.size else low) * step
-    dx, dy = np.cos(turns)[ray - low], np.sin(turns)[ray - low]
-    ex, ey = qx[seg] - px[seg], qy[seg] - py[seg]
-    denom = dx * ey - dy * ex
-    with np.errstate(divide="ignore", invalid="ignore"):
-        along = (px[seg] * ey - py[seg] * ex) / denom
-    graze = ~np.isfinite(along) | (np.abs(denom) < 1e-12)
-    along[graze] = np.minimum(
-        np.hypot(px[seg[graze]], py[seg[graze]]), np.hypot(qx[seg[graze]], qy[seg[graze]])
-    )
-    out = np.zeros(n_shapes * n_angles)
-    np.maximum.at(out, (seg // n_points) * n_angles + np.mod(ray, n_angles), np.maximum(along, 0.0))
-    return out.reshape(n_shapes, n_angles)
+    theta = polar_angles(radii.shape[1])
+    _, cx, cy = polygon_area_centroids(radii * np.cos(theta), radii * np.sin(theta))
+    return radii_about(radii, np.column_stack([cx, cy]))
 
 
 @one_blas_thread
 def _cutoffs(
-    radii: NDArray[np.float64], examples: Sequence[ArrayLike | None] | None, tolerance: float
+    radii: NDArray[np.float64],
+    examples: Sequence[ArrayLike | None] | None,
+    tolerance: float,
+    origins: NDArray[np.float64] | None = None,
 ) -> tuple[SensorMetric, Calibration]:
     """A library's sensor metric and the cutoffs calibrated on it (the metric is the
     library's own: made once, kept)."""
     metric = SensorMetric.from_radii(radii, tolerance)
-    return metric, calibrate(radii, examples=examples, tolerance=tolerance, metric=metric)
+    return metric, calibrate(radii, examples=examples, tolerance=tolerance, metric=metric, origins=origins)
+
+
+def noise_origins(
+    params: Sequence[SuperformulaParams | None] | None, radii: NDArray[np.float64]
+) -> NDArray[np.float64] | None:
+    """Per shape, the point the paper's outline noise is drawn about: its formula's origin.
+
+    The paper's noise multiplies a Superformula's radii about the formula's
+    origin, which is not the centroid of a shape without point symmetry
+    (m = 1, a drop): such a shape's noise is larger on the side far from the
+    origin, and its calibration simulates it so
+    (:func:`rockscan.core.calibrate.simulate_radii`).
+
+    Parameters
+    ----------
+    params : sequence of SuperformulaParams or None, or None
+        Each shape's formula, None for a shape without one.
+    radii : (n_shapes, n_angles) ndarray of float
+        The shapes' radii about their centroids, as the library holds them.
+
+    Returns
+    -------
+    origins : (n_shapes, 2) ndarray of float or None
+        (x, y) of each origin from the centroid, in units of the mean radius
+        (``radii``' scale); (0, 0) for a shape without a formula or with point
+        symmetry. None when no shape has a formula.
+    """
+    if params is None or all(p is None for p in params):
+        return None
+    n_shapes, n_angles = radii.shape
+    theta = polar_angles(n_angles)
+    origins = np.zeros((n_shapes, 2))
+    given = np.array([p is not None for p in params])
+    for start in range(0, n_shapes, _CHUNK):
+        rows = np.flatnonzero(given[start : start + _CHUNK]) + start
+        if rows.size == 0:
+            continue
+        table = np.array(
+            [[getattr(params[i], k) for k in ("m1", "m2", "n1", "n2", "n3", "a", "b")] for i in rows]
+        )
+        with np.errstate(over="ignore"):
+            raw = np.exp(log_superformula(theta, *(column[:, None] for column in table.T)))
+        area, cx, cy = polygon_area_centroids(raw * np.cos(theta), raw * np.sin(theta))
+        # The same outline at the library's scale: its area fixes the ratio.
+        unit, _, _ = polygon_area_centroids(radii[rows] * np.cos(theta), radii[rows] * np.sin(theta))
+        scale = np.sqrt(np.abs(area) / np.maximum(np.abs(unit), 1e-300))
+        origins[rows] = -np.column_stack([cx, cy]) / scale[:, None]
+    # A point-symmetric shape's origin is its centroid: rounding is no offset.
+    origins[np.hypot(origins[:, 0], origins[:, 1]) < 1e-9] = 0.0
+    return origins
 
 
 def _symmetry_each(radii: NDArray[np.float64]) -> NDArray[np.int64]:

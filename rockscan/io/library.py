@@ -278,6 +278,7 @@ def _recalibrated(library: Library, version: int, path: Path) -> Library:
     calibrated now (with a RecalibratedWarning) for a file that has none or whose
     cutoffs come from an earlier calibration."""
     from rockscan.core.calibrate import CALIBRATION_VERSION, calibrate
+    from rockscan.core.library import noise_origins
 
     stored = library.calibration
     if stored is None and version < _CALIBRATED_VERSION:
@@ -299,7 +300,7 @@ def _recalibrated(library: Library, version: int, path: Path) -> Library:
     else:
         return library
     warnings.warn(message, RecalibratedWarning, stacklevel=3)
-    calibration = calibrate(library.radii, **settings)
+    calibration = calibrate(library.radii, origins=noise_origins(library.params, library.radii), **settings)
     return dataclasses.replace(
         library, calibration=dataclasses.replace(calibration, note="calibrated when loaded")
     )
