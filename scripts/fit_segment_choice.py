@@ -76,6 +76,8 @@ SIGNS = {
     "covers_centre": 1,
     "log_area": 0,
     "consensus": 1,
+    # A round piece hanging off the body is a touching pebble, never the rock.
+    "pebbles": -1,
     # How far each cue is trusted is for the data to say.
     **{f"from_{source}": 0 for source in SOURCES[1:]},
 }

@@ -8,7 +8,14 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from rockscan.core.segment import segment
-from rockscan.core.segment.choose import FEATURES, SAME_OBJECT, SOURCES, choice_features, choose
+from rockscan.core.segment.choose import (
+    FEATURES,
+    SAME_OBJECT,
+    SOURCES,
+    choice_features,
+    choose,
+    pebble_share,
+)
 from rockscan.core.segment.split import _solidity
 from rockscan.core.segment.types import RockMask, Segmentation
 
@@ -103,6 +110,68 @@ def test_a_star_keeps_its_arms_beside_a_solid_pebble():
     found = [candidate(star, 0.95), candidate(disk(20, 20, 6), 0.3)]
     assert found[0].rocks[0].evidence[5] < 0.75 < found[1].rocks[0].evidence[5]
     assert choose(found, [1.0, 0.5])[0] == 0
+
+
+def star(row: float, col: float, radius: float, arms: int, depth: float) -> np.ndarray:
+    rr, cc = np.mgrid[: SHAPE[0], : SHAPE[1]]
+    angle = np.arctan2(rr - row, cc - col)
+    return np.hypot(rr - row, cc - col) <= radius * (1 + depth * np.cos(arms * angle))
+
+
+@pytest.mark.parametrize("pebble", [4.0, 5.0, 6.0])
+def test_the_pebble_share_is_the_area_of_a_small_round_pebble_on_the_rock(pebble):
+    rock = disk(60, 80, 30)
+    pebble_disk = disk(60, 80 + 30 + pebble - 1.5, pebble)
+    share = pebble_share(rock | pebble_disk)
+    # The opening leaves the pebble's rim by the contact on the rock's side.
+    assert share == pytest.approx((pebble_disk & ~rock).sum() / (rock | pebble_disk).sum(), rel=0.35)
+    assert share > 0
+
+
+@pytest.mark.parametrize(
+    "mask",
+    [
+        disk(60, 80, 30),
+        disk(60, 80, 3),
+        np.zeros(SHAPE, bool),
+        star(60, 80, 30, 5, 0.4),
+        star(60, 80, 30, 6, 0.3),
+    ],
+    ids=["disk", "speck", "empty", "star-5", "star-6"],
+)
+def test_a_rock_alone_has_no_pebbles_and_a_star_keeps_its_arms(mask):
+    assert pebble_share(mask) < 0.02
+
+
+def test_alike_lobes_all_round_are_the_rocks_own_shape():
+    """Eight round lobes (a Superformula of symmetry 8) are no pebbles; one of them alone is."""
+    lobes = disk(60, 80, 26)
+    for k in range(8):
+        a = 2 * np.pi * k / 8
+        lobes |= disk(60 + 31 * np.sin(a), 80 + 31 * np.cos(a), 5)
+    assert pebble_share(lobes) == 0.0
+    assert pebble_share(disk(60, 80, 26) | disk(60, 80 + 31, 5)) > 0.005
+
+
+def test_the_pebble_share_does_not_depend_on_resolution():
+    """Regions larger than the measuring radius are scaled down to it."""
+    rr, cc = np.mgrid[:600, :800]
+    big = np.hypot(rr - 300, cc - 400) <= 150
+    big |= np.hypot(rr - 300, cc - 400 - 150 - 22) <= 25
+    small = big[::4, ::4]
+    assert pebble_share(big) == pytest.approx(pebble_share(small), abs=0.01)
+    assert pebble_share(big) > 0.01
+
+
+def test_a_candidate_with_a_pebble_joined_on_loses_to_the_rock_alone():
+    rock = disk(60, 80, 30)
+    joined = rock | disk(60, 80 + 34.5, 6) | disk(60, 80 - 33.5, 5) | disk(60 + 32.5, 80, 4)
+    assert (rock & joined).sum() / joined.sum() < SAME_OBJECT
+    found = [candidate(joined, 0.9), candidate(rock, 0.9)]
+    col = FEATURES.index("pebbles")
+    features = choice_features(found, [1.0, 1.0])
+    assert features[0, col] > 0.005 and features[1, col] == 0.0
+    assert choose(found, [1.0, 1.0])[0] == 1
 
 
 def test_segment_takes_the_chosen_candidate_on_a_photo_with_a_neighbour_at_the_edge():

@@ -16,6 +16,9 @@ opened off). Each is measured by what a person would look at:
   intersection over union with the three that overlap it most). Cues fail
   in different ways, a shaded side here, a highlight there, and mostly
   agree where they are right.
+* **pebbles**: the share of its area in round pieces hanging off its body
+  (:func:`pebble_share`). A rock with a touching pebble joined on is the
+  commonest wrong outline that the photo supports all round.
 * its **source**: one column per cue, so that the model learns how far each
   cue is to be trusted.
 
@@ -39,7 +42,7 @@ from numpy.typing import NDArray
 
 from rockscan.core.segment.types import Segmentation
 
-__all__ = ["FEATURES", "choice_features", "choice_probabilities", "choose"]
+__all__ = ["FEATURES", "choice_features", "choice_probabilities", "choose", "pebble_share"]
 
 #: Where a candidate comes from: the detection's own threshold outlines
 #: ("detected", placed between pixels), then the other cues of
@@ -73,6 +76,7 @@ FEATURES = (
     "covers_centre",
     "log_area",
     "consensus",
+    "pebbles",
     *(f"from_{source}" for source in SOURCES[1:]),
 )
 
@@ -81,17 +85,34 @@ FEATURES = (
 _GRID = 96
 #: How many of the most overlapping other candidates the consensus averages.
 _CONSENSUS_OF = 3
+#: A piece counts as a pebble when the disk inscribed in it has at least this
+#: share of the radius of a disk of its area (a blunt lobe, not a star's arm).
+_PEBBLE_ROUNDNESS = 0.6
+#: ... and when that disk's diameter is at least this share of the piece's
+#: contact with the body: a pebble meets the rock at a neck, a star's tip
+#: is widest where it joins the body (measured: 0.24-0.38 for the tips of
+#: rendered stars, mostly 0.45-1.3 for generated touching pebbles).
+_PEBBLE_NECK = 0.45
+#: At least this many round pieces, the largest at most ``_LOBES_ALIKE``
+#: times the smallest, are lobes of the rock's own shape.
+_LOBES = 3
+_LOBES_ALIKE = 2.0
+#: The opening that takes pebbles off, in equivalent radii of the region.
+_PEBBLE_OPENING = 0.2
+#: Pebble shares are measured with the region scaled to at most this
+#: equivalent radius, in pixels (the share does not depend on resolution).
+_PEBBLE_RADIUS = 40.0
 
 #: Logistic weights of :data:`FEATURES` and the intercept, fitted by
 #: ``scripts/fit_segment_choice.py`` on the benchmark's development part.
 WEIGHTS = np.array(
     [
-        *(0.04466, 9.896, 7.564, 0, 0, -20.74, 0, -1.778, 0, 0.1985, 7.3),
-        *(0.5449, -1.793, 0.5111, 0.1142, 0.348, 0.5002, 0.3957, 0.456, 0.7742),  # sources
+        *(0, 9.821, 6.269, 0, 0, -21.61, 0, -1.746, 0, 0.263, 7.052, -53.74),
+        *(0.4442, -1.955, 0.3377, -0.08753, -0.1262, 0.08361, 0.4145, 0.4803, 0.7399),  # sources
     ],
     dtype=np.float64,
 )
-INTERCEPT = -15.37
+INTERCEPT = -14.21
 
 
 def _grid_mask(found: Segmentation) -> NDArray[np.bool_]:
@@ -99,6 +120,70 @@ def _grid_mask(found: Segmentation) -> NDArray[np.bool_]:
 
     main = (found.labels == 1).astype(np.float32)
     return cv2.resize(main, (_GRID, _GRID), interpolation=cv2.INTER_AREA) >= 0.5
+
+
+def pebble_share(mask: NDArray[np.bool_]) -> float:
+    """Share of a region's area in round pieces that an opening takes off its body.
+
+    The region is opened with a disk of ``_PEBBLE_OPENING`` equivalent radii;
+    what the opening takes off, apart from the largest remaining body, falls
+    into pieces. A piece whose inscribed disk has at least
+    ``_PEBBLE_ROUNDNESS`` of the radius of a disk of its area is a blunt,
+    round lobe, and one whose inscribed diameter is at least ``_PEBBLE_NECK``
+    of its contact with the body meets it at a neck: such a piece is a
+    pebble touching the rock. Thin pieces (rough edges) and pieces that are
+    widest where they join the body (the tips of a star) do not count, nor do
+    round pieces when there are ``_LOBES`` or more of much the same size:
+    lobes all round are the rock's own shape.
+
+    Parameters
+    ----------
+    mask : (h, w) ndarray of bool
+
+    Returns
+    -------
+    share : float
+        In [0, 1]; 0 for an empty region or one without round pieces.
+    """
+    import cv2
+
+    ys, xs = np.nonzero(mask)
+    if ys.size < 30:
+        return 0.0
+    region = mask[ys.min() : ys.max() + 1, xs.min() : xs.max() + 1]
+    radius = math.sqrt(ys.size / math.pi)
+    if radius > _PEBBLE_RADIUS:
+        scale = _PEBBLE_RADIUS / radius
+        size = (max(1, round(region.shape[1] * scale)), max(1, round(region.shape[0] * scale)))
+        region = cv2.resize(region.astype(np.float32), size, interpolation=cv2.INTER_AREA) >= 0.5
+    region = np.pad(region, 2).astype(np.uint8)
+    area = int(region.sum())
+    if area < 30:
+        return 0.0
+    k = max(1, round(_PEBBLE_OPENING * math.sqrt(area / math.pi)))
+    disk = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * k + 1, 2 * k + 1))
+    body = cv2.morphologyEx(region, cv2.MORPH_OPEN, disk)
+    n, labels, stats, _ = cv2.connectedComponentsWithStats(body)
+    if n > 2:
+        body = (labels == 1 + int(np.argmax(stats[1:, cv2.CC_STAT_AREA]))).astype(np.uint8)
+    n, pieces, stats, _ = cv2.connectedComponentsWithStats(region & (1 - body))
+    rim = cv2.dilate(body, np.ones((3, 3), np.uint8)).astype(bool)
+    pebbles = []
+    for i in range(1, n):
+        size = int(stats[i, cv2.CC_STAT_AREA])
+        if size < max(4, 0.005 * area):
+            continue
+        piece = pieces == i
+        inscribed = float(cv2.distanceTransform(np.pad(piece, 1).astype(np.uint8), cv2.DIST_L2, 5).max())
+        contact = max(int((piece & rim).sum()), 1)
+        round_ = inscribed >= _PEBBLE_ROUNDNESS * math.sqrt(size / math.pi)
+        if round_ and 2.0 * inscribed >= _PEBBLE_NECK * contact:
+            pebbles.append(size)
+    # Alike lobes all round are the rock's own shape (a lobed star, a
+    # Superformula of high symmetry), not pebbles that happen to touch it.
+    if len(pebbles) >= _LOBES and max(pebbles) <= _LOBES_ALIKE * min(pebbles):
+        return 0.0
+    return sum(pebbles) / area
 
 
 def _mutual_ious(candidates: Sequence[Segmentation]) -> NDArray[np.float64]:
@@ -177,6 +262,7 @@ def _features(
                 float(mask[h // 2, w // 2]),
                 math.log(max(share, 1e-6)),
                 consensus,
+                pebble_share(mask),
                 *(float(sources[k] == source) for source in SOURCES[1:]),
             ]
         )
