@@ -167,7 +167,7 @@ def test_an_outline_of_two_touching_disks_is_cut_into_the_two():
         assert (part & disk).sum() / (part | disk).sum() > 0.95
 
 
-@pytest.mark.parametrize(("arms", "amplitude"), [(5, 0.4), (6, 0.35), (3, 0.3), (4, 0.45), (4, 0.6)])
+@pytest.mark.parametrize(("arms", "amplitude"), [(5, 0.4), (6, 0.35), (3, 0.3), (4, 0.45), (8, 0.4)])
 def test_a_star_and_a_disk_stay_whole(arms, amplitude):
     from rockscan.core.segment.split import split_blobs
 
@@ -176,3 +176,31 @@ def test_a_star_and_a_disk_stay_whole(arms, amplitude):
     star = np.hypot(rr - 100, cc - 130) <= 55 * (1 + amplitude * np.cos(arms * angle))
     assert len(split_blobs(star)) == 1
     assert len(split_blobs(np.hypot(rr - 100, cc - 130) <= 50)) == 1
+
+
+def test_the_default_librarys_shapes_stay_whole():
+    """No shape of the default library is cut into blobs, whatever its lobes."""
+    from skimage.draw import polygon2mask
+
+    from rockscan.core.segment.split import split_blobs
+    from rockscan.core.superformula import shape_radii
+    from rockscan.io import default_spec_path, read_spec
+
+    theta = np.linspace(0, 2 * np.pi, 720, endpoint=False)
+    for spec in read_spec(default_spec_path()):
+        radii = shape_radii(spec.params, 720)
+        radii = radii / radii.max() * 90
+        outline = np.column_stack([100 + radii * np.sin(theta), 100 + radii * np.cos(theta)])
+        assert len(split_blobs(polygon2mask((200, 200), outline))) == 1, spec.name
+
+
+def test_a_deeply_lobed_star_is_cut_at_its_lobes_in_the_last_look():
+    """The documented price of cutting at wider necks (BLOB_NECK_SHARE)."""
+    from rockscan.core.segment.split import BLOB_NECK_SHARE, NECK_SHARE, split_blobs, split_necks
+
+    rr, cc = _blob_grid()
+    angle = np.arctan2(rr - 100, cc - 130)
+    star = np.hypot(rr - 100, cc - 130) <= 55 * (1 + 0.6 * np.cos(4 * angle))
+    assert BLOB_NECK_SHARE > NECK_SHARE
+    assert len(split_necks(star, 0.1 * star.sum())) == 1
+    assert len(split_blobs(star)) > 1

@@ -140,6 +140,10 @@ def split_rocks(
 BLOB_SOLIDITY = 0.9
 #: Smallest blob, as a share of the outlined rock's area.
 BLOB_MIN_SHARE = 0.1
+#: ``NECK_SHARE`` and ``CUT_SHARE`` for the last look at an outlined rock
+#: with ``--all``, where the cues of the detection have already had their say.
+BLOB_NECK_SHARE = 0.9
+BLOB_CUT_SHARE = 1.0
 
 
 def split_blobs(mask: NDArray[np.bool_]) -> list[NDArray[np.bool_]]:
@@ -164,7 +168,7 @@ def split_blobs(mask: NDArray[np.bool_]) -> list[NDArray[np.bool_]]:
     area = int(mask.sum())
     if area < 50 or _solidity(mask) >= BLOB_SOLIDITY:
         return [mask]
-    return split_necks(mask, BLOB_MIN_SHARE * area)
+    return split_necks(mask, BLOB_MIN_SHARE * area, neck_share=BLOB_NECK_SHARE, cut_share=BLOB_CUT_SHARE)
 
 
 def territories(regions: list[NDArray[np.bool_]]) -> NDArray[np.int32]:
@@ -206,7 +210,13 @@ def _contrast_cells(
     )
 
 
-def split_necks(cell: NDArray[np.bool_], min_area: float) -> list[NDArray[np.bool_]]:
+def split_necks(
+    cell: NDArray[np.bool_],
+    min_area: float,
+    *,
+    neck_share: float = NECK_SHARE,
+    cut_share: float = CUT_SHARE,
+) -> list[NDArray[np.bool_]]:
     """A mask cut at narrow necks between compact blobs (module docstring, cue 2).
 
     Parameters
@@ -214,6 +224,10 @@ def split_necks(cell: NDArray[np.bool_], min_area: float) -> list[NDArray[np.boo
     cell : (rows, cols) ndarray of bool
     min_area : float
         Smallest part, in pixels.
+    neck_share, cut_share : float
+        A neck at least ``neck_share`` of the smaller blob's inscribed radius
+        joins two blobs, and so does a border at least ``cut_share`` of the
+        smaller part's equivalent diameter (``NECK_SHARE``, ``CUT_SHARE``).
 
     Returns
     -------
@@ -227,7 +241,9 @@ def split_necks(cell: NDArray[np.bool_], min_area: float) -> list[NDArray[np.boo
         dist,
         cell & (dist >= MIN_PEAK),
         cell,
-        lambda height, lower, cut, smaller: height >= NECK_SHARE * lower or _long_cut(cut, smaller),
+        lambda height, lower, cut, smaller: (
+            height >= neck_share * lower or _long_cut(cut, smaller, cut_share)
+        ),
     )
     parts = [labels == i for i in range(1, int(labels.max()) + 1)]
     parts = [p for p in parts if p.sum() >= min_area]
@@ -255,9 +271,9 @@ def _filled(mask: NDArray[np.bool_], largest: float) -> NDArray[np.bool_]:
     return mask | small[labels]
 
 
-def _long_cut(cut: float, smaller: float) -> bool:
-    """Whether a border of ``cut`` pixels runs across a part of ``smaller`` pixels (CUT_SHARE)."""
-    return cut >= CUT_SHARE * math.sqrt(4.0 * smaller / math.pi)
+def _long_cut(cut: float, smaller: float, share: float = CUT_SHARE) -> bool:
+    """Whether a border of ``cut`` pixels runs across a part of ``smaller`` pixels (``share``: CUT_SHARE)."""
+    return cut >= share * math.sqrt(4.0 * smaller / math.pi)
 
 
 def _flood_and_join(
