@@ -6,7 +6,8 @@ import numpy as np
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from rockscan.core.segment import _basin, _centre_basin, _colour_gradient, _core_basin, _opened
+from rockscan.core.segment import _basin, _centre_basin, _colour_gradient, _core_basin
+from rockscan.core.segment.split import opened as _opened
 from rockscan.core.segment.types import RockMask
 
 

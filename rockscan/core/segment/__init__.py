@@ -94,7 +94,7 @@ from rockscan.core.errors import NoRockFoundError, ParameterError
 from rockscan.core.segment.channels import _LUMA, _at_scale, _channels, _check_pixels, _pyramid, _unit
 from rockscan.core.segment.choose import choose
 from rockscan.core.segment.detect import _detect, _Detection, _luminance_polarity
-from rockscan.core.segment.split import split_blobs, split_necks, territories
+from rockscan.core.segment.split import opened, split_blobs, split_necks, territories
 from rockscan.core.segment.trace import _disk, _fill_holes, _from_alpha, _outline_rock, _scored
 from rockscan.core.segment.types import CONFIDENT_SCORE, RockMask, Segmentation, SegmentConfig
 
@@ -365,8 +365,8 @@ class _Outliner:
             ("centre-otsu", _centre_part(work, self.dtype)),
             ("centre-basin", _centre_basin(gradient)),
             ("core-basin", core),
-            ("opened", _opened(_whole(rock, work.shape[:2]))),
-            ("opened-core", _opened(core) if core is not None else None),
+            ("opened", opened(_whole(rock, work.shape[:2]))),
+            ("opened-core", opened(core) if core is not None else None),
         ]
         if self.config.polarity == "auto":
             # A box's GrabCut knows no polarity: it stays out when the user set one.
@@ -687,26 +687,3 @@ _WATERSHED_MARKER = 0.05
 _CORE_SHARE = 0.3
 #: The ground marker of the core basin lies this far outside the outline, in equivalent radii.
 _CORE_REACH = 0.6
-
-
-def _opened(mask: NDArray[np.bool_]) -> NDArray[np.bool_] | None:
-    """The mask opened by a disk of a fifth of its equivalent radius, its largest part kept.
-
-    Pebbles that touch a rock join it at contacts narrower than they are:
-    the opening takes them off and leaves the rock's own edge where it is.
-    """
-    import cv2
-
-    radius = math.sqrt(max(int(mask.sum()), 1) / math.pi)
-    size = round(_OPEN_SHARE * radius)
-    if size < 2:
-        return None
-    opened = cv2.morphologyEx(mask.astype(np.uint8), cv2.MORPH_OPEN, _disk(size))
-    count, labels, stats, _ = cv2.connectedComponentsWithStats(opened, connectivity=4)
-    if count < 2:
-        return None
-    return labels == 1 + int(np.argmax(stats[1:, cv2.CC_STAT_AREA]))
-
-
-#: Radius of the opening that takes touching pebbles off an outline, in its equivalent radii.
-_OPEN_SHARE = 0.2

@@ -40,6 +40,7 @@ from collections.abc import Sequence
 import numpy as np
 from numpy.typing import NDArray
 
+from rockscan.core.segment.split import opened
 from rockscan.core.segment.types import Segmentation
 
 __all__ = ["FEATURES", "choice_features", "choice_probabilities", "choose", "pebble_share"]
@@ -97,8 +98,6 @@ _PEBBLE_NECK = 0.45
 #: times the smallest, are lobes of the rock's own shape.
 _LOBES = 3
 _LOBES_ALIKE = 2.0
-#: The opening that takes pebbles off, in equivalent radii of the region.
-_PEBBLE_OPENING = 0.2
 #: Pebble shares are measured with the region scaled to at most this
 #: equivalent radius, in pixels (the share does not depend on resolution).
 _PEBBLE_RADIUS = 40.0
@@ -125,9 +124,9 @@ def _grid_mask(found: Segmentation) -> NDArray[np.bool_]:
 def pebble_share(mask: NDArray[np.bool_]) -> float:
     """Share of a region's area in round pieces that an opening takes off its body.
 
-    The region is opened with a disk of ``_PEBBLE_OPENING`` equivalent radii;
-    what the opening takes off, apart from the largest remaining body, falls
-    into pieces. A piece whose inscribed disk has at least
+    The region is opened as the "opened" candidates are
+    (``split.opened``); what the opening takes off, apart from the largest
+    remaining body, falls into pieces. A piece whose inscribed disk has at least
     ``_PEBBLE_ROUNDNESS`` of the radius of a disk of its area is a blunt,
     round lobe, and one whose inscribed diameter is at least ``_PEBBLE_NECK``
     of its contact with the body meets it at a neck: such a piece is a
@@ -154,36 +153,34 @@ def pebble_share(mask: NDArray[np.bool_]) -> float:
     radius = math.sqrt(ys.size / math.pi)
     if radius > _PEBBLE_RADIUS:
         scale = _PEBBLE_RADIUS / radius
-        size = (max(1, round(region.shape[1] * scale)), max(1, round(region.shape[0] * scale)))
-        region = cv2.resize(region.astype(np.float32), size, interpolation=cv2.INTER_AREA) >= 0.5
-    region = np.pad(region, 2).astype(np.uint8)
-    area = int(region.sum())
-    if area < 30:
+        shape = (max(1, round(region.shape[1] * scale)), max(1, round(region.shape[0] * scale)))
+        region = cv2.resize(region.astype(np.float32), shape, interpolation=cv2.INTER_AREA) >= 0.5
+    region = np.pad(region, 2)
+    body = opened(region)
+    if body is None:
         return 0.0
-    k = max(1, round(_PEBBLE_OPENING * math.sqrt(area / math.pi)))
-    disk = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * k + 1, 2 * k + 1))
-    body = cv2.morphologyEx(region, cv2.MORPH_OPEN, disk)
-    n, labels, stats, _ = cv2.connectedComponentsWithStats(body)
-    if n > 2:
-        body = (labels == 1 + int(np.argmax(stats[1:, cv2.CC_STAT_AREA]))).astype(np.uint8)
-    n, pieces, stats, _ = cv2.connectedComponentsWithStats(region & (1 - body))
-    rim = cv2.dilate(body, np.ones((3, 3), np.uint8)).astype(bool)
-    pebbles = []
-    for i in range(1, n):
-        size = int(stats[i, cv2.CC_STAT_AREA])
-        if size < max(4, 0.005 * area):
-            continue
-        piece = pieces == i
-        inscribed = float(cv2.distanceTransform(np.pad(piece, 1).astype(np.uint8), cv2.DIST_L2, 5).max())
-        contact = max(int((piece & rim).sum()), 1)
-        round_ = inscribed >= _PEBBLE_ROUNDNESS * math.sqrt(size / math.pi)
-        if round_ and 2.0 * inscribed >= _PEBBLE_NECK * contact:
-            pebbles.append(size)
+    count, pieces, stats, _ = cv2.connectedComponentsWithStats((region & ~body).astype(np.uint8))
+    # The pieces are apart, so one distance map gives each its inscribed radius.
+    inside = pieces > 0
+    distance = cv2.distanceTransform(inside.astype(np.uint8), cv2.DIST_L2, 5)
+    inscribed = np.zeros(count)
+    np.maximum.at(inscribed, pieces[inside], distance[inside])
+    rim = cv2.dilate(body.astype(np.uint8), np.ones((3, 3), np.uint8)).astype(bool)
+    contact = np.maximum(np.bincount(pieces[rim], minlength=count), 1)
+    size = stats[:, cv2.CC_STAT_AREA].astype(np.float64)
+    area = float(region.sum())
+    keep = (
+        (size >= max(4.0, 0.005 * area))
+        & (inscribed >= _PEBBLE_ROUNDNESS * np.sqrt(size / math.pi))
+        & (2.0 * inscribed >= _PEBBLE_NECK * contact)
+    )
+    keep[0] = False
+    pebbles = size[keep]
     # Alike lobes all round are the rock's own shape (a lobed star, a
     # Superformula of high symmetry), not pebbles that happen to touch it.
-    if len(pebbles) >= _LOBES and max(pebbles) <= _LOBES_ALIKE * min(pebbles):
+    if pebbles.size >= _LOBES and pebbles.max() <= _LOBES_ALIKE * pebbles.min():
         return 0.0
-    return sum(pebbles) / area
+    return float(pebbles.sum() / area)
 
 
 def _mutual_ious(candidates: Sequence[Segmentation]) -> NDArray[np.float64]:

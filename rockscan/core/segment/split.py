@@ -28,7 +28,7 @@ from collections.abc import Callable
 import numpy as np
 from numpy.typing import NDArray
 
-__all__ = ["split_blobs", "split_necks", "split_rocks", "territories"]
+__all__ = ["opened", "split_blobs", "split_necks", "split_rocks", "territories"]
 
 #: A pass between two humps of contrast at least this share of the lower top
 #: joins them (texture on one rock); below it they are two rocks.
@@ -169,6 +169,41 @@ def split_blobs(mask: NDArray[np.bool_]) -> list[NDArray[np.bool_]]:
     if area < 50 or _solidity(mask) >= BLOB_SOLIDITY:
         return [mask]
     return split_necks(mask, BLOB_MIN_SHARE * area, neck_share=BLOB_NECK_SHARE, cut_share=BLOB_CUT_SHARE)
+
+
+#: Radius of the opening that takes touching pebbles off a region, in its equivalent radii.
+OPEN_SHARE = 0.2
+
+
+def opened(mask: NDArray[np.bool_], share: float = OPEN_SHARE) -> NDArray[np.bool_] | None:
+    """The mask opened by a disk of ``share`` of its equivalent radius, its largest part kept.
+
+    Pebbles that touch a rock join it at contacts narrower than they are:
+    the opening takes them off and leaves the rock's own edge where it is.
+
+    Parameters
+    ----------
+    mask : (rows, cols) ndarray of bool
+    share : float
+        Radius of the disk, in equivalent radii of the mask.
+
+    Returns
+    -------
+    (rows, cols) ndarray of bool or None
+        None when the disk would be under 2 pixels or nothing is left.
+    """
+    import cv2
+
+    radius = math.sqrt(max(int(mask.sum()), 1) / math.pi)
+    size = round(share * radius)
+    if size < 2:
+        return None
+    disk = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * size + 1, 2 * size + 1))
+    body = cv2.morphologyEx(mask.astype(np.uint8), cv2.MORPH_OPEN, disk)
+    count, labels, stats, _ = cv2.connectedComponentsWithStats(body, connectivity=4)
+    if count < 2:
+        return None
+    return labels == 1 + int(np.argmax(stats[1:, cv2.CC_STAT_AREA]))
 
 
 def territories(regions: list[NDArray[np.bool_]]) -> NDArray[np.int32]:
