@@ -66,3 +66,13 @@ def test_crowded_touching_rocks_are_found_one_to_one():
     # Neither everything merged into one region nor shattered.
     for c in crowds:
         assert 0.5 * c.n_true <= c.n_found <= 1.5 * c.n_true
+
+
+@pytest.mark.parametrize(("condition", "index"), [("plain", 9), ("touching-pebbles", 2), ("touching-pebbles", 3)])
+def test_a_crisp_pebble_beside_an_unrivalled_rock_is_not_taken_for_it(condition, index):
+    # On these development photos the rock stands out far above every other
+    # region, and a small pebble beside it is outlined as crisply (score
+    # >= FAST_SCORE): the fast path is for the unrivalled region itself, so
+    # the pebble must not end the search (it did, at IoU 0 with the rock).
+    score = judged(condition, index)
+    assert score.iou >= 0.9, round(score.iou, 3)

@@ -236,8 +236,16 @@ def _candidate_pool(
             # Fast path: an outline the photo supports all round, of a rock
             # that stood out clearly from every other region, needs no rival;
             # in the first channel that shows a rock only (a later channel's
-            # rival to the first's outlines is for the choice to judge).
-            if fast and not rivals_seen and found.rocks[0].score >= FAST_SCORE and _unrivalled(detection):
+            # rival to the first's outlines is for the choice to judge), and
+            # for that region itself: a crisp pebble beside an unrivalled
+            # rock is no reason to stop.
+            if (
+                fast
+                and not rivals_seen
+                and candidate is detection
+                and found.rocks[0].score >= FAST_SCORE
+                and _unrivalled(detection)
+            ):
                 return found
             pool.append((found, candidate.score, "detected"))
             key = _choice_key(found, candidate.score)
