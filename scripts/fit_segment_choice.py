@@ -3,26 +3,36 @@
 On the development part of the segmentation benchmark only (photos of one
 rock and crops with neighbours, from :mod:`scenes`), every candidate outline
 ``rockscan.core.segment`` considers is measured (``choice_features``) and
-compared with the truth (intersection over union). A logistic model with an
-L2 penalty on standardised features learns which candidates have IoU >= 0.9;
-its weights, mapped back to raw features, are printed for
-``rockscan/core/segment/choose.py``.
+compared with the truth (intersection over union). Two models learn which
+candidates have IoU >= 0.9:
 
-Printed besides: the share of photos whose chosen candidate has IoU >= 0.9
-under two-fold cross-validation (photos split at random, averaged over five
-splits), the same for the
-rule it replaces (segmentation score times detection score to the 1/8) and for
-an oracle that always takes the best candidate (what candidate generation
-allows).
+* **trees** (what rockscan uses): gradient-boosted regression trees
+  (scikit-learn's ``HistGradientBoostingClassifier``, depth ``--depth``,
+  ``--trees`` rounds), each evidence feature held monotone in the direction
+  :data:`SIGNS` gives unless ``--free``; with ``--write`` its trees are
+  written to ``rockscan/core/segment/choice_model.py``, which evaluates them
+  with numpy alone (checked here against scikit-learn's own predictions);
+* **linear**, the baseline it replaced: a logistic model with an L2 penalty on
+  standardised features and the same signs.
 
-    python scripts/fit_segment_choice.py -n 20 --jobs 2 --cache scene-cache
+Printed: the share of photos whose chosen candidate has IoU >= 0.9 under
+two-fold cross-validation (photos split at random, averaged over five
+splits) for both, beside the rule before any model (segmentation score times
+detection score to the 1/8) and an oracle that always takes the best
+candidate (what candidate generation allows).
+
+Needs scikit-learn besides rockscan (``pip install scikit-learn``)::
+
+    python scripts/fit_segment_choice.py -n 40 --jobs 2 --cache scene-cache --write
 """
 
 from __future__ import annotations
 
 import argparse
+import importlib
 import pickle
 import sys
+import textwrap
 from pathlib import Path
 
 import numpy as np
@@ -33,7 +43,7 @@ import bench_segment as bench
 import scenes
 
 from rockscan.core.errors import NoRockFoundError
-from rockscan.core.segment.choose import SOURCES
+from rockscan.core.segment.choose import MONOTONE
 
 CONDITIONS = [c for c, kind in scenes.CONDITION_KINDS.items() if kind != "all"]
 
@@ -59,28 +69,8 @@ def _measure(task: tuple[str, int]) -> tuple[str, np.ndarray, np.ndarray, np.nda
     return condition, features, ious, keys
 
 
-#: The sign each weight is held to (+1: at least 0, -1: at most 0, 0: free), so
-#: that more evidence for an outline never counts against it.
-SIGNS = {
-    "logit_score": 1,
-    "support": 1,
-    # Free: the outline of a rock that touches others crosses the contacts,
-    # where the photo steps little, while the joined region of the rocks is
-    # supported all round; how much of an outline is weak is no evidence against it.
-    "weak": 0,
-    "outside": -1,
-    "noise": -1,
-    "frame": -1,
-    "log_detection": 1,
-    "centre_distance": -1,
-    "covers_centre": 1,
-    "log_area": 0,
-    "consensus": 1,
-    # A round piece hanging off the body is a touching pebble, never the rock.
-    "pebbles": -1,
-    # How far each cue is trusted is for the data to say.
-    **{f"from_{source}": 0 for source in SOURCES[1:]},
-}
+#: The direction each feature is held to (``choose.MONOTONE``).
+SIGNS = MONOTONE
 
 
 #: Random two-fold splits the cross-validated share is averaged over.
@@ -111,33 +101,89 @@ def fit(features: list[np.ndarray], ious: list[np.ndarray], penalty: float) -> t
     return weights, float(w[0] - np.sum(w[1:] * mu / sd))
 
 
-def hits(
-    features: list[np.ndarray], ious: list[np.ndarray], weights: np.ndarray, intercept: float
-) -> np.ndarray:
-    """Whether each photo's most probable candidate has IoU >= 0.9."""
+def hits(features: list[np.ndarray], ious: list[np.ndarray], rank) -> np.ndarray:
+    """Whether each photo's highest-ranked candidate (``rank(features)``) has IoU >= 0.9."""
     return np.array(
-        [
-            iou.size > 0 and iou[np.argmax(f @ weights + intercept)] >= 0.9
-            for f, iou in zip(features, ious, strict=True)
-        ]
+        [iou.size > 0 and iou[np.argmax(rank(f))] >= 0.9 for f, iou in zip(features, ious, strict=True)]
     )
 
 
-def main() -> None:
-    parser = argparse.ArgumentParser(
-        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
+def fit_trees(features: list[np.ndarray], ious: list[np.ndarray], args, seed: int = 0):
+    """The gradient-boosted trees of the choice, fitted with scikit-learn."""
+    from sklearn.ensemble import HistGradientBoostingClassifier
+
+    from rockscan.core.segment.choose import FEATURES
+
+    x = np.vstack(features)
+    y = np.concatenate(ious) >= 0.9
+    monotone = [0 if args.free else SIGNS[name] for name in FEATURES]
+    model = HistGradientBoostingClassifier(
+        max_iter=args.trees,
+        max_depth=args.depth,
+        learning_rate=args.rate,
+        l2_regularization=1.0,
+        min_samples_leaf=20,
+        monotonic_cst=monotone,
+        early_stopping=False,
+        random_state=seed,
     )
-    parser.add_argument("-n", type=int, default=20, help="development photos per condition")
-    parser.add_argument("--penalty", type=float, default=1.0, help="L2 penalty on standardised weights")
-    parser.add_argument("--jobs", type=int, default=1)
-    parser.add_argument("--cache", type=Path, help="keep generated photos in this folder between runs")
-    parser.add_argument("--measured", type=Path, help="keep the measured candidates in this .pkl file")
-    args = parser.parse_args()
-    bench._CACHE_DIR = args.cache
-    tasks = [(c, i) for c in CONDITIONS for i in range(args.n)]
+    return model.fit(x, y)
+
+
+def tree_arrays(model) -> dict[str, np.ndarray | float | int]:
+    """The fitted trees as flat node arrays (``choice_model``): a leaf's feature is -1."""
+    nodes = [predictor.nodes for (predictor,) in model._predictors]
+    sizes = np.array([len(n) for n in nodes])
+    roots = np.concatenate([[0], np.cumsum(sizes)[:-1]])
+    flat = np.concatenate(nodes)
+    offset = np.repeat(roots, sizes)
+    leaf = flat["is_leaf"].astype(bool)
+    return {
+        "ROOTS": roots.astype(np.int64),
+        "FEATURE": np.where(leaf, -1, flat["feature_idx"]).astype(np.int64),
+        "THRESHOLD": np.where(leaf, 0.0, flat["num_threshold"]).astype(np.float64),
+        "LEFT": np.where(leaf, 0, flat["left"] + offset).astype(np.int64),
+        "RIGHT": np.where(leaf, 0, flat["right"] + offset).astype(np.int64),
+        "VALUE": np.where(leaf, flat["value"], 0.0).astype(np.float64),
+        "BIAS": float(np.ravel(model._baseline_prediction)[0]),
+        "DEPTH": int(flat["depth"].max()),
+    }
+
+
+def _array_source(name: str, values: np.ndarray, kind: str) -> str:
+    """``NAME = np.array([...], dtype=...)`` with the values wrapped to the line length."""
+    items = [repr(float(v)) if kind == "float64" else str(int(v)) for v in values]
+    lines, line = [], ""
+    for item in items:
+        if line and len(line) + len(item) > 96:
+            lines.append(line.rstrip())
+            line = ""
+        line += item + ", "
+    lines.append(line.rstrip())
+    body = "".join(f"        {text}\n" for text in lines)
+    return f"{name} = np.array(\n    [\n{body}    ],\n    dtype=np.{kind},\n)\n"
+
+
+def write_model(arrays: dict, path: Path, summary: str) -> None:
+    """Write the trees as a module of numpy arrays (``choice_model``)."""
+    header = (
+        '"""The choice model\'s trees (``choose.choice_probabilities``), written by\n'
+        "``scripts/fit_segment_choice.py --write``: not to be edited by hand.\n\n"
+        f"{summary}\n"
+        '"""\n\nimport numpy as np\n'
+    )
+    parts = [header, f"BIAS = {arrays['BIAS']!r}\n", f"DEPTH = {arrays['DEPTH']}\n"]
+    parts += [_array_source(name, arrays[name], "int64") for name in ("ROOTS", "FEATURE", "LEFT", "RIGHT")]
+    parts += [_array_source(name, arrays[name], "float64") for name in ("THRESHOLD", "VALUE")]
+    path.write_text("\n".join(parts))
+
+
+def _measured(args) -> list:
+    """Every development photo's candidates, measured (or read back from ``--measured``)."""
     if args.measured is not None and args.measured.exists():
-        results = pickle.loads(args.measured.read_bytes())
-    elif args.jobs > 1:
+        return pickle.loads(args.measured.read_bytes())
+    tasks = [(c, i) for c in CONDITIONS for i in range(args.n)]
+    if args.jobs > 1:
         import multiprocessing
 
         with multiprocessing.get_context("spawn").Pool(
@@ -148,42 +194,95 @@ def main() -> None:
         results = [_measure(t) for t in tasks]
     if args.measured is not None:
         args.measured.write_bytes(pickle.dumps(results))
+    return results
+
+
+def cross_validated(features: list[np.ndarray], ious: list[np.ndarray], fit_rank) -> np.ndarray:
+    """Each photo's share of splits in which the model fitted on the other half chose right.
+
+    Two-fold, over REPEATS random splits of the photos; ``fit_rank(features,
+    ious, seed)`` fits a model and returns its ranking function.
+    """
+    n = len(features)
+    cross = np.zeros(n)
+    for repeat in range(REPEATS):
+        half = np.random.default_rng(repeat).permutation(n) < n // 2
+        for train in (half, ~half):
+            rank = fit_rank(
+                [f for f, t in zip(features, train, strict=True) if t],
+                [i for i, t in zip(ious, train, strict=True) if t],
+                repeat,
+            )
+            test = ~train
+            cross[test] += hits(
+                [f for f, t in zip(features, test, strict=True) if t],
+                [i for i, t in zip(ious, test, strict=True) if t],
+                rank,
+            )
+    return cross / REPEATS
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(
+        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
+    )
+    parser.add_argument("-n", type=int, default=40, help="development photos per condition")
+    parser.add_argument("--trees", type=int, default=100, help="boosting rounds (default 100)")
+    parser.add_argument("--depth", type=int, default=3, help="depth of each tree (default 3)")
+    parser.add_argument("--rate", type=float, default=0.1, help="learning rate (default 0.1)")
+    parser.add_argument("--free", action="store_true", help="no monotone constraints on the trees")
+    parser.add_argument("--penalty", type=float, default=1.0, help="the linear baseline's L2 penalty")
+    parser.add_argument("--write", action="store_true", help="write the trees to choice_model.py")
+    parser.add_argument("--jobs", type=int, default=1)
+    parser.add_argument("--cache", type=Path, help="keep generated photos in this folder between runs")
+    parser.add_argument("--measured", type=Path, help="keep the measured candidates in this .pkl file")
+    args = parser.parse_args()
+    bench._CACHE_DIR = args.cache
+    results = _measured(args)
     conditions = np.array([r[0] for r in results])
     features = [r[1] for r in results]
     ious = [r[2] for r in results]
     keys = [r[3] for r in results]
     old = np.array([k.size > 0 and iou[np.argmax(k)] >= 0.9 for k, iou in zip(keys, ious, strict=True)])
     oracle = np.array([iou.size > 0 and iou.max() >= 0.9 for iou in ious])
-    # Two-fold cross-validation, repeated over REPEATS random splits of the photos.
-    cross = np.zeros(len(results))
-    for repeat in range(REPEATS):
-        half = np.random.default_rng(repeat).permutation(len(results)) < len(results) // 2
-        for train in (half, ~half):
-            w, b = fit(
-                [f for f, t in zip(features, train, strict=True) if t],
-                [i for i, t in zip(ious, train, strict=True) if t],
-                args.penalty,
-            )
-            test = ~train
-            cross[test] += hits(
-                [f for f, t in zip(features, test, strict=True) if t],
-                [i for i, t in zip(ious, test, strict=True) if t],
-                w,
-                b,
-            )
-    cross /= REPEATS
-    weights, intercept = fit(features, ious, args.penalty)
-    print("| condition | old rule | fitted choice (2-fold) | oracle |")
-    print("|---|---|---|---|")
+
+    def linear(f, i, seed):
+        w, b = fit(f, i, args.penalty)
+        return lambda x: x @ w + b
+
+    def trees(f, i, seed):
+        return fit_trees(f, i, args, seed).decision_function
+
+    columns = {"old rule": old, "linear (2-fold)": cross_validated(features, ious, linear)}
+    columns["trees (2-fold)"] = cross_validated(features, ious, trees)
+    columns["oracle"] = oracle
+    print("| condition | photos | " + " | ".join(columns) + " |")
+    print("|---|---|" + "---|" * len(columns))
     for c in [*CONDITIONS, None]:
         sel = np.ones(len(results), bool) if c is None else conditions == c
-        name = "all" if c is None else c
-        print(f"| {name} | {old[sel].mean():.1%} | {cross[sel].mean():.1%} | {oracle[sel].mean():.1%} |")
-    from rockscan.core.segment.choose import FEATURES
+        cells = " | ".join(f"{v[sel].mean():.1%}" for v in columns.values())
+        print(f"| {'all' if c is None else c} | {int(sel.sum())} | {cells} |")
+    if args.write:
+        model = fit_trees(features, ious, args)
+        arrays = tree_arrays(model)
+        from rockscan.core.segment import choice_model
 
-    print("\nWEIGHTS = np.array([" + ", ".join(f"{v:.4g}" for v in weights) + "])")
-    print(f"INTERCEPT = {intercept:.4g}")
-    print("# " + ", ".join(FEATURES))
+        choose = importlib.import_module("rockscan.core.segment.choose")
+
+        summary = (
+            f"{len(arrays['ROOTS'])} trees of depth {arrays['DEPTH']} (learning rate {args.rate}"
+            f"{', no monotone constraints' if args.free else ', evidence monotone'}), fitted on "
+            f"{len(results)} development photos, {sum(len(i) for i in ious)} candidates; "
+            f"cross-validated choice {columns['trees (2-fold)'].mean():.1%} (linear "
+            f"{columns['linear (2-fold)'].mean():.1%}, oracle {oracle.mean():.1%})."
+        )
+        path = Path(choice_model.__file__)
+        write_model(arrays, path, textwrap.fill(summary, 76))
+        importlib.reload(choice_model)
+        x = np.vstack(features)
+        ours = choose.choice_probabilities(x)
+        theirs = model.predict_proba(x)[:, 1]
+        print(f"\nwrote {path}; largest difference from scikit-learn: {np.abs(ours - theirs).max():.2e}")
 
 
 def _set_cache(cache: Path | None) -> None:

@@ -7,12 +7,14 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from rockscan.core.segment import segment
+from rockscan.core.segment import choice_model, segment
 from rockscan.core.segment.choose import (
     FEATURES,
+    MONOTONE,
     SAME_OBJECT,
     SOURCES,
     choice_features,
+    choice_probabilities,
     choose,
     pebble_share,
 )
@@ -203,3 +205,51 @@ def test_each_source_has_its_own_column_and_unknown_sources_are_refused():
 def test_of_outlines_of_one_object_the_detected_is_kept():
     found = [candidate(disk(60, 80, 20.3), score=0.95), candidate(disk(60, 80, 20), score=0.9)]
     assert choose(found, [1.0, 1.0], ["box-frame", "detected"])[0] == 1
+
+
+def _walk(x: np.ndarray) -> float:
+    """The choice model's log-odds of one feature row, tree by tree, node by node."""
+    m = choice_model
+    total = m.BIAS
+    for root in m.ROOTS:
+        node = int(root)
+        while m.FEATURE[node] >= 0:
+            node = int(m.LEFT[node] if x[m.FEATURE[node]] <= m.THRESHOLD[node] else m.RIGHT[node])
+        total += m.VALUE[node]
+    return total
+
+
+def _feature_rows(rng: np.random.Generator, n: int) -> np.ndarray:
+    """Feature rows spread over the model's own thresholds, each source flag 0 or 1."""
+    m = choice_model
+    rows = np.empty((n, len(FEATURES)))
+    for k in range(len(FEATURES)):
+        cuts = m.THRESHOLD[m.FEATURE == k]
+        low, high = (cuts.min() - 1.0, cuts.max() + 1.0) if cuts.size else (-1.0, 1.0)
+        rows[:, k] = rng.uniform(low, high, n)
+    sources = [FEATURES.index(f"from_{s}") for s in SOURCES[1:]]
+    rows[:, sources] = rng.integers(0, 2, (n, len(sources)))
+    return rows
+
+
+def test_the_trees_are_walked_all_at_once_as_one_by_one():
+    m = choice_model
+    assert m.ROOTS.size >= 10 and m.DEPTH >= 1
+    # Every node is a leaf or points at two nodes of its own tree, deeper down.
+    inner = np.flatnonzero(m.FEATURE >= 0)
+    assert np.all(m.LEFT[inner] > inner) and np.all(m.RIGHT[inner] > inner)
+    assert m.FEATURE.max() < len(FEATURES)
+    x = _feature_rows(np.random.default_rng(0), 200)
+    expected = 1.0 / (1.0 + np.exp(-np.array([_walk(row) for row in x])))
+    np.testing.assert_allclose(choice_probabilities(x), expected, rtol=1e-12, atol=1e-15)
+
+
+@settings(max_examples=60, deadline=None)
+@given(seed=st.integers(0, 2**32 - 1), feature=st.sampled_from([f for f, sign in MONOTONE.items() if sign]))
+def test_more_evidence_for_an_outline_never_lowers_its_probability(seed, feature):
+    k = FEATURES.index(feature)
+    x = _feature_rows(np.random.default_rng(seed), 20)
+    more = x.copy()
+    more[:, k] += MONOTONE[feature] * np.random.default_rng(seed + 1).uniform(0.0, 3.0, 20)
+    assert np.all(choice_probabilities(more) >= choice_probabilities(x) - 1e-12)
+    assert set(MONOTONE) == set(FEATURES)

@@ -22,10 +22,12 @@ opened off). Each is measured by what a person would look at:
 * its **source**: one column per cue, so that the model learns how far each
   cue is to be trusted.
 
-A logistic model of these features gives each candidate the probability
-that it outlines the rock (intersection over union >= 0.9), and the most
-probable wins. The weights were fitted on the development part of the
-segmentation benchmark (``scripts/fit_segment_choice.py``). The winner's
+A model of these features gives each candidate the probability that it
+outlines the rock (intersection over union >= 0.9), and the most probable
+wins: gradient-boosted regression trees (:func:`choice_probabilities`),
+fitted on the development part of the segmentation benchmark
+(``scripts/fit_segment_choice.py``, which also fits the one-weight-per-feature
+logistic model they replaced, as a baseline). The winner's
 reported score stays its segmentation score (``score.py``), the same
 measure for every rock whether or not there was a choice to make; the
 probability, which leans on consensus, decides only whether the refinements
@@ -40,10 +42,11 @@ from collections.abc import Sequence
 import numpy as np
 from numpy.typing import NDArray
 
+from rockscan.core.segment import choice_model
 from rockscan.core.segment.split import opened
 from rockscan.core.segment.types import Segmentation
 
-__all__ = ["FEATURES", "choice_features", "choice_probabilities", "choose", "pebble_share"]
+__all__ = ["FEATURES", "MONOTONE", "choice_features", "choice_probabilities", "choose", "pebble_share"]
 
 #: Where a candidate comes from: the detection's own threshold outlines
 #: ("detected", placed between pixels), then the other cues of
@@ -81,6 +84,31 @@ FEATURES = (
     *(f"from_{source}" for source in SOURCES[1:]),
 )
 
+#: The direction in which the choice model's probability may move with each
+#: feature (+1: never down as it grows, -1: never up, 0: free), so that more
+#: evidence for an outline never counts against it; the trees are fitted
+#: under these constraints.
+MONOTONE = {
+    "logit_score": 1,
+    "support": 1,
+    # Free: the outline of a rock that touches others crosses the contacts,
+    # where the photo steps little, while the joined region of the rocks is
+    # supported all round; how much of an outline is weak is no evidence against it.
+    "weak": 0,
+    "outside": -1,
+    "noise": -1,
+    "frame": -1,
+    "log_detection": 1,
+    "centre_distance": -1,
+    "covers_centre": 1,
+    "log_area": 0,
+    "consensus": 1,
+    # A round piece hanging off the body is a touching pebble, never the rock.
+    "pebbles": -1,
+    # How far each cue is trusted is for the data to say.
+    **{f"from_{source}": 0 for source in SOURCES[1:]},
+}
+
 #: Side of the common grid candidates are compared on (they may come from
 #: working images of different sizes).
 _GRID = 96
@@ -101,18 +129,6 @@ _LOBES_ALIKE = 2.0
 #: Pebble shares are measured with the region scaled to at most this
 #: equivalent radius, in pixels (the share does not depend on resolution).
 _PEBBLE_RADIUS = 40.0
-
-#: Logistic weights of :data:`FEATURES` and the intercept, fitted by
-#: ``scripts/fit_segment_choice.py`` on the benchmark's development part.
-WEIGHTS = np.array(
-    [
-        *(0, 9.821, 6.269, 0, 0, -21.61, 0, -1.746, 0, 0.263, 7.052, -53.74),
-        *(0.4442, -1.955, 0.3377, -0.08753, -0.1262, 0.08361, 0.4145, 0.4803, 0.7399),  # sources
-    ],
-    dtype=np.float64,
-)
-INTERCEPT = -14.21
-
 
 def _grid_mask(found: Segmentation) -> NDArray[np.bool_]:
     import cv2
@@ -267,8 +283,34 @@ def _features(
 
 
 def choice_probabilities(features: NDArray) -> NDArray[np.float64]:
-    """The logistic model's probability that each candidate outlines the rock."""
-    t = np.clip(INTERCEPT + features @ WEIGHTS, -50.0, 50.0)
+    """The choice model's probability that each candidate outlines the rock.
+
+    The model (``choice_model``) is an ensemble of small regression trees
+    whose leaf values add up to the log-odds, gradient-boosted on the
+    development part by ``scripts/fit_segment_choice.py``. Trees, unlike one
+    weight per feature, let a cue count in some settings and not in others:
+    consensus means more beside a crisp outline than beside a weak one, and a
+    frame-touching outline is wrong in a photo of one rock but right in a crop.
+
+    Parameters
+    ----------
+    features : (n, len(FEATURES)) ndarray
+        ``choice_features`` of the candidates.
+
+    Returns
+    -------
+    probabilities : (n,) ndarray of float64
+    """
+    x = np.asarray(features, dtype=np.float64).reshape(-1, len(FEATURES))
+    model = choice_model
+    rows = np.arange(x.shape[0])[:, None]
+    node = np.broadcast_to(model.ROOTS, (x.shape[0], model.ROOTS.size)).copy()
+    # Every tree is walked at once, one level a step; a leaf stays where it is.
+    for _ in range(model.DEPTH):
+        feature = model.FEATURE[node]
+        left = x[rows, np.maximum(feature, 0)] <= model.THRESHOLD[node]
+        node = np.where(feature < 0, node, np.where(left, model.LEFT[node], model.RIGHT[node]))
+    t = np.clip(model.BIAS + model.VALUE[node].sum(axis=1), -50.0, 50.0)
     return 1.0 / (1.0 + np.exp(-t))
 
 
