@@ -128,11 +128,16 @@ class RockMask:
     origin_rowcol : (int, int)
         The window's top-left pixel in the working image.
     score : float
-        Segmentation score in [0, 1]: how well the photo supports this
-        outline (a step from the rock's level to the ground's all round it,
-        rock inside, ground outside, off the frame, solid; see
-        ``rockscan.core.segment.score``). Low means a likely wrong outline; below
-        :data:`CONFIDENT_SCORE` the outline is not to be trusted.
+        Segmentation score in [0, 1]. For the main rock of a photo of one
+        rock chosen among candidate outlines, the choice model's estimate of
+        the probability that its outline is right (IoU >= 0.9 with the rock).
+        For a main rock the fast path took, for every rock found with
+        ``all_rocks`` and for every candidate before the choice, how well
+        the photo supports the outline (a step
+        from the rock's level to the ground's all round it, rock inside,
+        ground outside, off the frame, solid; see
+        ``rockscan.core.segment.score``). Low means a likely wrong outline;
+        below :data:`CONFIDENT_SCORE` the outline is not to be trusted.
     evidence : tuple of float
         The measurements the score is computed from (support, weak, outside,
         noise, frame, solidity).
