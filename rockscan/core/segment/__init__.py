@@ -172,6 +172,7 @@ def segment(
 #: The choice model's probability from which the detected candidates' choice stands unrefined.
 FAST_PROBABILITY = 0.9
 
+
 def _main_scored(found: Segmentation, score: float) -> Segmentation:
     """The segmentation with its main rock's score set to ``score``.
 

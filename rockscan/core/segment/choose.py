@@ -27,11 +27,10 @@ outlines the rock (intersection over union >= 0.9), and the most probable
 wins: gradient-boosted regression trees (:func:`choice_probabilities`),
 fitted on the development part of the segmentation benchmark
 (``scripts/fit_segment_choice.py``, which also fits the one-weight-per-feature
-logistic model they replaced, as a baseline). The winner's
-reported score stays its segmentation score (``score.py``), the same
-measure for every rock whether or not there was a choice to make; the
-probability, which leans on consensus, decides only whether the refinements
-are worth making.
+logistic model they replaced, as a baseline). The winner's probability
+decides whether the refinements are worth making, and becomes the rock's
+segmentation score (``rockscan.core.segment.segment``): it ranks right
+outlines above wrong ones better than the outline's own evidence.
 """
 
 from __future__ import annotations
@@ -129,6 +128,7 @@ _LOBES_ALIKE = 2.0
 #: Pebble shares are measured with the region scaled to at most this
 #: equivalent radius, in pixels (the share does not depend on resolution).
 _PEBBLE_RADIUS = 40.0
+
 
 def _grid_mask(found: Segmentation) -> NDArray[np.bool_]:
     import cv2
@@ -288,9 +288,9 @@ def choice_probabilities(features: NDArray) -> NDArray[np.float64]:
     The model (``choice_model``) is an ensemble of small regression trees
     whose leaf values add up to the log-odds, gradient-boosted on the
     development part by ``scripts/fit_segment_choice.py``. Trees, unlike one
-    weight per feature, let a cue count in some settings and not in others:
-    consensus means more beside a crisp outline than beside a weak one, and a
-    frame-touching outline is wrong in a photo of one rock but right in a crop.
+    weight per feature, let how much a cue counts depend on the others (and
+    saturate where more of it says nothing new), each within the direction
+    :data:`MONOTONE` allows it.
 
     Parameters
     ----------
