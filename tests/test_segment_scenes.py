@@ -68,6 +68,17 @@ def test_crowded_touching_rocks_are_found_one_to_one():
         assert 0.5 * c.n_true <= c.n_found <= 1.5 * c.n_true
 
 
+def test_a_band_of_ground_that_outscores_every_rock_does_not_hide_them():
+    # Development scene 35: 31 light rocks on a ground crossed by a broad
+    # shadowed band. The band is the best-scoring region; when every rock
+    # had to score a tenth of it and cover 15% of its area, 8 regions were
+    # found and 6 rocks matched. A rock is now judged per pixel against the
+    # best regions, whatever its size.
+    crowd = judged("crowded", 35)
+    assert crowd.matched >= 0.85 * crowd.n_true, crowd
+    assert abs(crowd.n_found - crowd.n_true) <= 3, crowd
+
+
 @pytest.mark.parametrize(("condition", "index"), [("plain", 9), ("touching-pebbles", 2), ("touching-pebbles", 3)])
 def test_a_crisp_pebble_beside_an_unrivalled_rock_is_not_taken_for_it(condition, index):
     # On these development photos the rock stands out far above every other

@@ -46,10 +46,14 @@ Steps (see :func:`segment`):
    A region whose contrast has two clear levels (Otsu's separation above 0.8:
    a rock and a faint halo, or rocks joined through the ground between them)
    is cut at Otsu's threshold, and its largest part kept. With ``all_rocks``,
-   every region of the main rock's polarity that scores at least a tenth of
-   the main rock and covers at least ``min_relative_area`` of its area is cut
-   so, and every part whose area is at least ``min_relative_area`` of the
-   largest is a rock, by decreasing area.
+   a region of the main rock's polarity is a rock if it looks as much like one
+   per pixel as the best regions do (its score over its area at least half
+   the median of the five best-scoring regions', and its median ``z`` beyond
+   ``z_detect``) or scores at least a tenth of the main rock; and if less
+   than half its edge runs along the frame's. A small rock so counts as well
+   as a large one, and a band of ground that outscores every rock does not
+   set the standard alone. Each is cut so, and every part whose area is at
+   least ``min_relative_area`` of the largest is a rock, by decreasing area.
 6. **Outline.** In a window around each rock, at working size, after a
    ``smooth_sigma`` Gaussian, the rock's level is the median inside the
    detected region (less a margin) and the ground's the median of a ring

@@ -292,7 +292,8 @@ def _best_regions(
             regions = [labels == i for i in usable]
         if not regions:
             continue
-        scores = _region_scores(signed, regions)
+        measures = _region_measures(signed, regions)
+        scores = _region_scores(measures)
         candidates = regions
         if not all_rocks:
             # A crop is centred on its rock: of two rocks alike, the nearer the centre.
@@ -315,20 +316,15 @@ def _best_regions(
         if total <= 0 or (best is not None and total <= best[0]):
             continue
         areas_r = np.array([float(r.sum()) for r in regions])
-        if all_rocks:
-            # Another rock stands out about as clearly as the main one; ground
-            # texture that passes the thresholds scores far less.
-            keep = (scores >= _RELATIVE_SCORE * total) & (areas_r >= config.min_relative_area * areas_r[main])
-            regions = [
-                part
-                for i in np.flatnonzero(keep)
-                for part in (_split(regions[i], signed, min_area) if split else [regions[i]])
-            ]
-            if not regions:
-                continue
-            largest = max(int(r.sum()) for r in regions)
-            regions = [r for r in regions if r.sum() >= config.min_relative_area * largest]
-            regions.sort(key=lambda r: -int(r.sum()))
+        if all_rocks and split:
+            regions = _every_rock(signed, regions, measures, scores, config, min_area)
+        elif all_rocks:
+            # Before the last round, the rocks to leave out of the ground: those
+            # that stand out about as clearly as the main one; ground texture
+            # that passes the thresholds scores far less.
+            keep = (scores >= _RELATIVE_SCORE * total) & (areas_r >= _RELATIVE_AREA * areas_r[main])
+            largest = float(areas_r[keep].max())
+            regions = [regions[i] for i in np.flatnonzero(keep & (areas_r >= _RELATIVE_AREA * largest))]
         else:
             parts = _split(regions[main], signed, min_area) if split else []
             regions = [max(parts, key=lambda r: int(r.sum()))] if parts else [regions[main]]
@@ -339,7 +335,7 @@ def _best_regions(
             if i != main
             and not all_rocks
             and scores[i] >= _RELATIVE_SCORE * total
-            and candidates[i].sum() >= config.min_relative_area * candidates[main].sum()
+            and candidates[i].sum() >= _RELATIVE_AREA * candidates[main].sum()
         ]
         best = (total, regions, polarity, others)
     if best is None:
@@ -349,11 +345,49 @@ def _best_regions(
     return (*best, alternatives)
 
 
-def _region_scores(signed: NDArray[np.float32], regions: list[NDArray[np.bool_]]) -> NDArray[np.float64]:
-    """How clearly each region stands out as a rock (module docstring, step 5).
+def _every_rock(
+    signed: NDArray[np.float32],
+    regions: list[NDArray[np.bool_]],
+    measures: tuple[NDArray[np.float64], ...],
+    scores: NDArray[np.float64],
+    config: SegmentConfig,
+    min_area: float,
+) -> list[NDArray[np.bool_]]:
+    """The rocks among one polarity's regions, with ``all_rocks`` (module docstring, step 5), largest first.
 
-    Its area, times its edge step, times its compactness, times the square of
-    the share of its edge that does not run along the frame's.
+    A region is a rock if it looks as much like one as the best regions do,
+    whatever its size (a small rock scores less than a large one, but not per
+    pixel), or if it scores at least ``_RELATIVE_SCORE`` of the main rock; and
+    if less than ``_FRAME_SHARE`` of its edge runs along the frame's. The best
+    regions are several, so that one region of ground (a shadowed band, a
+    stripe) cannot set the standard alone.
+    """
+    main = int(np.argmax(scores))
+    likeness = _likeness(measures)
+    reference = float(np.median(likeness[np.argsort(-scores, kind="stable")[:_TYPICAL]]))
+    # Most of a rock's pixels stand out as far as a seed must: a lighter
+    # patch of ground that only just passes the growth threshold does not.
+    contrast = np.array([float(np.median(signed[r])) for r in regions])
+    alike = (likeness >= _LIKENESS * reference) & (contrast >= config.z_detect)
+    keep = (alike | (scores >= _RELATIVE_SCORE * scores[main])) & (measures[3] < _FRAME_SHARE)
+    keep[main] = True
+    rocks = [part for i in np.flatnonzero(keep) for part in _split(regions[i], signed, min_area)]
+    largest = max(int(r.sum()) for r in rocks)
+    rocks = [r for r in rocks if r.sum() >= config.min_relative_area * largest]
+    return sorted(rocks, key=lambda r: -int(r.sum()))
+
+
+def _region_measures(
+    signed: NDArray[np.float32], regions: list[NDArray[np.bool_]]
+) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
+    """Each region's area, edge step, compactness and share of its edge on the frame's.
+
+    The edge step is the mean contrast just inside the region less just
+    outside it: a rock's edge is a step as high as its contrast; a blob of
+    texture fades out and barely steps at its edge. Two touching rocks each
+    have an edge along the cut between them. Compactness is ``4 pi area /
+    perimeter**2`` at most 1: rocks are solid; the ground between several
+    rocks, or a blob of texture, has a long ragged edge for its area.
     """
     import cv2
 
@@ -363,15 +397,11 @@ def _region_scores(signed: NDArray[np.float32], regions: list[NDArray[np.bool_]]
         labels[region & (labels == 0)] = i
     count = len(regions) + 1
     band = np.ones((5, 5), np.uint8)
-    as_float = labels.astype(np.float32)
-    # Edge step: mean contrast just inside a region less just outside it.
-    # A rock's edge is a step as high as its contrast; a blob of texture
-    # fades out and barely steps at its edge. Two touching rocks each have an
-    # edge along the cut between them.
-    inner = (labels > 0) & (
-        (cv2.erode(as_float, band) != as_float) | (cv2.dilate(as_float, band) != as_float)
-    )
-    outer_labels = cv2.dilate(as_float, band).astype(np.int64)
+    # OpenCV's morphology takes 16-bit labels, and far fewer regions than 65536 compete.
+    small = labels.astype(np.uint16) if count < 65536 else labels.astype(np.float32)
+    grown = cv2.dilate(small, band)
+    inner = (labels > 0) & ((cv2.erode(small, band) != small) | (grown != small))
+    outer_labels = grown.astype(np.int64)
     outer = (labels == 0) & (outer_labels > 0)
     clipped = np.minimum(signed, _Z_CAP)
     inner_n = np.bincount(labels[inner], minlength=count)[1:]
@@ -379,28 +409,44 @@ def _region_scores(signed: NDArray[np.float32], regions: list[NDArray[np.bool_]]
     outer_n = np.bincount(outer_labels[outer], minlength=count)[1:]
     outer_sum = np.bincount(outer_labels[outer], weights=clipped[outer], minlength=count)[1:]
     step = inner_sum / np.maximum(inner_n, 1) - outer_sum / np.maximum(outer_n, 1)
-    # The share of a region's edge that is the frame's edge: a rock lies
-    # inside the frame, the ground (or a lighting residue) runs along it.
+    # A rock lies inside the frame; the ground (or a lighting residue) runs along it.
     # The inner band is two pixels wide: half its count is the perimeter.
     edge = np.zeros((rows, cols), bool)
     edge[0], edge[-1], edge[:, 0], edge[:, -1] = True, True, True, True
     perimeter = np.maximum(inner_n / 2.0, 1.0)
     on_edge = np.bincount(labels[edge], minlength=count)[1:]
     share = np.clip(on_edge / perimeter, 0.0, 1.0)
-    # Rocks are solid; the ground between several rocks, or a blob of
-    # texture, has a long ragged edge for its area (1 for a disc).
     areas = np.bincount(labels.ravel(), minlength=count)[1:].astype(np.float64)
     compactness = np.minimum(4.0 * np.pi * areas / perimeter**2, 1.0)
-    return areas * np.maximum(step, 0.0) * compactness * (1.0 - share) ** 2
+    return areas, step, compactness, share
+
+
+def _likeness(measures: tuple[NDArray[np.float64], ...]) -> NDArray[np.float64]:
+    """How much each region looks like a rock, whatever its size: its score per pixel."""
+    _, step, compactness, share = measures
+    return np.maximum(step, 0.0) * compactness * (1.0 - share) ** 2
+
+
+def _region_scores(measures: tuple[NDArray[np.float64], ...]) -> NDArray[np.float64]:
+    """How clearly each region stands out as a rock (module docstring, step 5).
+
+    Its area, times its edge step, times its compactness, times the square of
+    the share of its edge that does not run along the frame's
+    (:func:`_region_measures`).
+    """
+    return measures[0] * _likeness(measures)
 
 
 def _centre_weight(regions: list[NDArray[np.bool_]], shape: tuple[int, int]) -> NDArray[np.float64]:
     """1 at the frame's centre, falling to ``1 - _CENTRE_PRIOR`` at its corners (squared distance)."""
     weights = []
+    rows_at, cols_at = np.arange(shape[0]), np.arange(shape[1])
     for region in regions:
-        ys, xs = np.nonzero(region)
-        dy = (ys.mean() + 0.5) / shape[0] * 2.0 - 1.0
-        dx = (xs.mean() + 0.5) / shape[1] * 2.0 - 1.0
+        # The centroid from the region's row and column profiles: two sums, no pixel list.
+        by_row, by_col = region.sum(axis=1), region.sum(axis=0)
+        area = max(int(by_row.sum()), 1)
+        dy = (int(by_row @ rows_at) / area + 0.5) / shape[0] * 2.0 - 1.0
+        dx = (int(by_col @ cols_at) / area + 0.5) / shape[1] * 2.0 - 1.0
         weights.append(1.0 - _CENTRE_PRIOR * 0.5 * (dy * dy + dx * dx))
     return np.array(weights)
 
@@ -412,8 +458,17 @@ _ALTERNATIVES = 3
 _CENTRE_PRIOR = 0.3
 
 
-#: With several rocks, the smallest score of a rock as a fraction of the main rock's.
+#: Before the last round, and for the neighbours in a crop: the smallest score
+#: and area of another rock as fractions of the main rock's.
 _RELATIVE_SCORE = 0.1
+_RELATIVE_AREA = 0.15
+
+#: With ``all_rocks``, a region is a rock if its likeness (score per pixel) is at
+#: least ``_LIKENESS`` of the median of the ``_TYPICAL`` best-scoring regions',
+#: and less than ``_FRAME_SHARE`` of its edge runs along the frame's.
+_TYPICAL = 5
+_LIKENESS = 0.5
+_FRAME_SHARE = 0.5
 
 
 def _split(

@@ -37,9 +37,6 @@ PASS_SHARE = 0.5
 CONVEX = 0.96
 #: Solidity from which a cell the contrast left whole is one rock (shape cue skipped).
 CONVEX_CELL = 0.95
-#: Smoothing of the contrast before it is split, as a share of the largest
-#: inscribed radius in the region.
-TEXTURE_SHARE = 0.1
 #: A neck narrower than this share of the smaller blob's inscribed radius
 #: (both as distances to the ground) parts two blobs.
 NECK_SHARE = 0.72
@@ -73,8 +70,6 @@ def split_rocks(
         One mask per rock, together covering the region; the region itself
         when it is one rock.
     """
-    import cv2
-
     ys, xs = np.nonzero(region)
     if ys.size < 2 * min_area:
         return [region]
@@ -86,18 +81,7 @@ def split_rocks(
     if _solidity(sub) >= CONVEX:
         # Touching rocks leave notches where they meet: a convex region is one rock.
         return [region]
-    # Texture on a rock (a coin's relief) dents its contrast as deeply as the
-    # gap between two rocks, but over a shorter length: smoothing by a tenth
-    # of the largest rock's inscribed radius fills the one and keeps the other.
-    # A ground pixel all round: the region may fill its window at the frame.
-    inscribed = float(cv2.distanceTransform(np.pad(sub, 1).astype(np.uint8), cv2.DIST_L2, 5).max())
     values = np.where(sub, signed[r0:r1, c0:c1], 0.0).astype(np.float32)
-    smooth = values
-    if inscribed * TEXTURE_SHARE > 0.5:
-        smooth = cv2.GaussianBlur(
-            np.ascontiguousarray(signed[r0:r1, c0:c1], dtype=np.float32), (0, 0), inscribed * TEXTURE_SHARE
-        )
-        smooth = np.where(sub, smooth, 0.0).astype(np.float32)
     cells = _contrast_cells(values, sub, floor)
     parts = []
     for label in range(1, int(cells.max()) + 1):
@@ -137,7 +121,7 @@ def split_rocks(
 
 
 #: Solidity under which an outlined rock is looked at again for touching blobs.
-BLOB_SOLIDITY = 0.9
+BLOB_SOLIDITY = 0.93
 #: Smallest blob, as a share of the outlined rock's area.
 BLOB_MIN_SHARE = 0.1
 #: ``NECK_SHARE`` and ``CUT_SHARE`` for the last look at an outlined rock

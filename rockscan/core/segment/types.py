@@ -77,7 +77,7 @@ class SegmentConfig:
     z_grow: float = 2.0
     min_contrast: float = 0.05
     min_area_fraction: float = 0.002
-    min_relative_area: float = 0.15
+    min_relative_area: float = 0.05
     polarity: str = "auto"
 
     def __post_init__(self) -> None:
