@@ -10,12 +10,14 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 from test_segment import coverage, photo_of
 
 import rockscan.run.pipeline
 from rockscan.core.segment import CONFIDENT_SCORE, segment
 from rockscan.core.segment.score import outline_evidence, outline_score
-from rockscan.core.segment.split import split_necks, split_rocks, territories
+from rockscan.core.segment.split import rejoined, split_necks, split_rocks, territories
 from rockscan.run.pipeline import classify_image, measure_rocks
 
 # ---------------------------------------------------------------- touching rocks
@@ -84,6 +86,36 @@ def test_split_rocks_parts_two_humps_of_contrast_across_a_dip():
     # One hump, however textured, is one rock.
     single = (10 * np.exp(-((yy - 30) ** 2 + (xx - 60) ** 2) / 500.0)).astype(np.float32)
     assert len(split_rocks(single, single > 0.5, 50, 0.5)) == 1
+
+
+def test_two_pieces_of_one_disc_are_rejoined_and_two_touching_discs_are_not():
+    yy, xx = np.mgrid[:80, :160]
+    disc = (yy - 40) ** 2 + (xx - 40) ** 2 <= 30**2
+    # A disc cut along a shading line, beside a disc that touches it.
+    top, bottom = disc & (yy < 35), disc & (yy >= 35)
+    other = ((yy - 40) ** 2 + (xx - 100) ** 2 <= 30**2) & ~disc
+    parts = rejoined([top, other, bottom])
+    assert len(parts) == 2
+    assert np.array_equal(parts[0], disc) and np.array_equal(parts[1], other)
+    # Apart, the pieces of the disc stay apart: only touching parts are joined.
+    gap = disc & (yy < 30)
+    assert len(rejoined([gap, bottom])) == 2
+
+
+@settings(max_examples=30, deadline=None)
+@given(st.lists(st.tuples(st.integers(0, 50), st.integers(0, 50), st.integers(3, 12)), min_size=1, max_size=6))
+def test_rejoined_parts_cover_the_same_pixels_once(discs):
+    yy, xx = np.mgrid[:64, :64]
+    taken = np.zeros((64, 64), bool)
+    parts = []
+    for r, c, radius in discs:
+        part = ((yy - r) ** 2 + (xx - c) ** 2 <= radius**2) & ~taken
+        if part.any():
+            parts.append(part)
+            taken |= part
+    out = rejoined(parts)
+    assert 1 <= len(out) <= len(parts)
+    assert np.array_equal(np.sum(out, axis=0), taken.astype(int))
 
 
 def test_territories_give_every_pixel_to_the_nearest_region():

@@ -11,7 +11,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from rockscan.core.segment.channels import _Channel, _unit
-from rockscan.core.segment.split import split_rocks
+from rockscan.core.segment.split import rejoined, split_rocks
 from rockscan.core.segment.types import RockMask, SegmentConfig
 
 
@@ -372,6 +372,7 @@ def _every_rock(
     keep = (alike | (scores >= _RELATIVE_SCORE * scores[main])) & (measures[3] < _FRAME_SHARE)
     keep[main] = True
     rocks = [part for i in np.flatnonzero(keep) for part in _split(regions[i], signed, min_area)]
+    rocks = rejoined(rocks)
     largest = max(int(r.sum()) for r in rocks)
     rocks = [r for r in rocks if r.sum() >= config.min_relative_area * largest]
     return sorted(rocks, key=lambda r: -int(r.sum()))

@@ -28,7 +28,7 @@ from collections.abc import Callable
 import numpy as np
 from numpy.typing import NDArray
 
-__all__ = ["opened", "split_blobs", "split_necks", "split_rocks", "territories"]
+__all__ = ["opened", "rejoined", "split_blobs", "split_necks", "split_rocks", "territories"]
 
 #: A pass between two humps of contrast at least this share of the lower top
 #: joins them (texture on one rock); below it they are two rocks.
@@ -188,6 +188,56 @@ def opened(mask: NDArray[np.bool_], share: float = OPEN_SHARE) -> NDArray[np.boo
     if count < 2:
         return None
     return labels == 1 + int(np.argmax(stats[1:, cv2.CC_STAT_AREA]))
+
+
+def rejoined(parts: list[NDArray[np.bool_]], convex: float = CONVEX_CELL) -> list[NDArray[np.bool_]]:
+    """Parts that touch and together are convex joined again, the most convex pair first.
+
+    The contrast cue cuts a rock along a shading line or a vein as readily as
+    two rocks along the ground between them, when the cut is judged within
+    one region. Across the regions of a whole scene the shape tells them
+    apart: touching rocks leave notches where they meet, and two pieces of
+    one rock make a convex whole (solidity at least ``convex``).
+
+    Parameters
+    ----------
+    parts : list of (rows, cols) ndarray of bool
+        Disjoint masks on one grid.
+    convex : float
+        Solidity from which two touching parts are one (``CONVEX_CELL``).
+
+    Returns
+    -------
+    list of (rows, cols) ndarray of bool
+        The parts, those joined in place of the first of each pair.
+    """
+    import cv2
+
+    parts = list(parts)
+    while len(parts) > 1:
+        labels = np.zeros(parts[0].shape, np.float32)
+        for i, part in enumerate(parts, start=1):
+            labels[part & (labels == 0)] = i
+        # A part touches another where its 3 x 3 neighbourhood holds the other's
+        # label (float32 holds every label up to 2**24 exactly).
+        grown = cv2.dilate(labels, np.ones((3, 3), np.uint8))
+        touch = (labels > 0) & (grown > 0) & (grown != labels)
+        lo = np.minimum(labels[touch], grown[touch]).astype(np.int64)
+        hi = np.maximum(labels[touch], grown[touch]).astype(np.int64)
+        best = None
+        for key in np.unique(lo * (len(parts) + 1) + hi):
+            a, b = divmod(int(key), len(parts) + 1)
+            union = parts[a - 1] | parts[b - 1]
+            ys, xs = np.nonzero(union)
+            solidity = _solidity(union[ys.min() : ys.max() + 1, xs.min() : xs.max() + 1])
+            if solidity >= convex and (best is None or solidity > best[0]):
+                best = (solidity, a, b)
+        if best is None:
+            break
+        _, a, b = best
+        parts[a - 1] = parts[a - 1] | parts[b - 1]
+        del parts[b - 1]
+    return parts
 
 
 def territories(regions: list[NDArray[np.bool_]]) -> NDArray[np.int32]:
