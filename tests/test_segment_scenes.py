@@ -51,12 +51,21 @@ def test_most_one_rock_photos_are_outlined_at_iou_09(one_rock_scores):
 
 def test_a_crop_is_outlined_around_the_rock_it_is_centred_on():
     scores = [judged("crop-neighbours", i) for i in range(8)]
-    # Crops are among the hardest conditions (see docs/segment-algorithm.md):
-    # on the development part 40% reach IoU 0.9, so half of eight reaching
-    # 0.75 is the bound, with a photo to spare.
-    assert sum(s.iou >= 0.75 for s in scores) >= 4, [round(s.iou, 2) for s in scores]
-    # Crop 4 (its rock walled in by neighbours of its own level) finds no rock.
-    assert sum(s.no_rock for s in scores) <= 1
+    # All eight reach IoU 0.9 on the development part; crops 4 and 7 (rocks
+    # walled in by neighbours of their own level, which widen the ground's
+    # spread) found no rock until the last detection round could also fall
+    # back on the spread of most stretches of the ground. A photo to spare.
+    assert sum(s.iou >= 0.85 for s in scores) >= 7, [round(s.iou, 2) for s in scores]
+    assert not any(s.no_rock for s in scores)
+
+
+def test_a_ground_whose_texture_varies_across_the_frame_does_not_hide_a_clear_rock():
+    # Development plain photo 39: a rock of contrast 0.28 covering a quarter of
+    # the frame on tinted grass. Against the whole ground's spread nothing
+    # stood out in the last round, and "no rock" came back.
+    score = judged("plain", 39)
+    assert not score.no_rock
+    assert score.iou >= 0.85, round(score.iou, 3)
 
 
 def test_crowded_touching_rocks_are_found_one_to_one():

@@ -31,7 +31,10 @@ Steps (see :func:`segment`):
 4. **Regions.** Each pixel's deviation from the ground is measured in robust
    standard deviations ``z`` (median and MAD of the ground pixels, the MAD
    taken as at least ``min_contrast / z_detect``, so that on a smooth ground
-   noise and JPEG blocks are no rock). A region
+   noise and JPEG blocks are no rock). When no region stands out so, in any
+   round, the MAD is taken as the median of the ground's MAD in the cells of
+   an 8 x 8 grid, if smaller: neighbours reaching into a crop, or a ground
+   whose texture varies across the frame, widen the whole ground's. A region
    grows from pixels beyond ``z_detect`` through connected pixels beyond
    ``z_grow`` (hysteresis), lighter or darker than the ground; regions smaller
    than ``min_area_fraction`` of the frame (pebbles, specks) are dropped.

@@ -185,9 +185,10 @@ def _detect(
         # Before the last round every rock counts, not only the main one: a
         # neighbour intruding into a crop is no ground for the next round.
         found = _best_regions(z, config, min_area, all_rocks or not last, split=last)
-        if found is None and round_ == 0:
-            # Nothing stands out against the whole border's spread: neighbours
-            # reaching into a crop may have widened it. Try most stretches' spread.
+        if found is None:
+            # Nothing stands out against the whole border's (or ground's) spread:
+            # neighbours reaching into a crop, or a ground whose texture varies
+            # across the frame, may have widened it. Try most stretches' spread.
             z = _robust_z(flat, stat_ground, config.min_contrast / config.z_detect, local=True)
             found = _best_regions(z, config, min_area, all_rocks or not last, split=last)
         if found is None:
