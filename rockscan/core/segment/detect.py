@@ -11,7 +11,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from rockscan.core.segment.channels import _Channel, _unit
-from rockscan.core.segment.split import rejoined, split_rocks
+from rockscan.core.segment.split import label_image, rejoined, split_rocks
 from rockscan.core.segment.types import RockMask, SegmentConfig
 
 
@@ -316,13 +316,14 @@ def _best_regions(
                     alternatives.append((total, whole, polarity))
         if total <= 0 or (best is not None and total <= best[0]):
             continue
-        areas_r = np.array([float(r.sum()) for r in regions])
         if all_rocks and split:
             regions = _every_rock(signed, regions, measures, scores, config, min_area)
         elif all_rocks:
             # Before the last round, the rocks to leave out of the ground: those
             # that stand out about as clearly as the main one; ground texture
-            # that passes the thresholds scores far less.
+            # that passes the thresholds scores far less. These regions are
+            # whole components, apart: their measured areas are their own.
+            areas_r = measures[0]
             keep = (scores >= _RELATIVE_SCORE * total) & (areas_r >= _RELATIVE_AREA * areas_r[main])
             largest = float(areas_r[keep].max())
             regions = [regions[i] for i in np.flatnonzero(keep & (areas_r >= _RELATIVE_AREA * largest))]
@@ -394,9 +395,7 @@ def _region_measures(
     import cv2
 
     rows, cols = signed.shape
-    labels = np.zeros((rows, cols), np.int32)
-    for i, region in enumerate(regions, start=1):
-        labels[region & (labels == 0)] = i
+    labels = label_image(regions)
     count = len(regions) + 1
     band = np.ones((5, 5), np.uint8)
     # OpenCV's morphology takes 16-bit labels, and far fewer regions than 65536 compete.

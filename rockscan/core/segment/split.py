@@ -28,7 +28,7 @@ from collections.abc import Callable
 import numpy as np
 from numpy.typing import NDArray
 
-__all__ = ["opened", "rejoined", "split_blobs", "split_necks", "split_rocks", "territories"]
+__all__ = ["label_image", "opened", "rejoined", "split_blobs", "split_necks", "split_rocks", "territories"]
 
 #: A pass between two humps of contrast at least this share of the lower top
 #: joins them (texture on one rock); below it they are two rocks.
@@ -214,12 +214,14 @@ def rejoined(parts: list[NDArray[np.bool_]], convex: float = CONVEX_CELL) -> lis
     import cv2
 
     parts = list(parts)
+    # Each part's token names it while it lasts, so that a pair's solidity is
+    # measured once, not again after every join elsewhere.
+    tokens = list(range(len(parts)))
+    solidity: dict[tuple[int, int], float] = {}
     while len(parts) > 1:
-        labels = np.zeros(parts[0].shape, np.float32)
-        for i, part in enumerate(parts, start=1):
-            labels[part & (labels == 0)] = i
         # A part touches another where its 3 x 3 neighbourhood holds the other's
         # label (float32 holds every label up to 2**24 exactly).
+        labels = label_image(parts).astype(np.float32)
         grown = cv2.dilate(labels, np.ones((3, 3), np.uint8))
         touch = (labels > 0) & (grown > 0) & (grown != labels)
         lo = np.minimum(labels[touch], grown[touch]).astype(np.int64)
@@ -227,17 +229,29 @@ def rejoined(parts: list[NDArray[np.bool_]], convex: float = CONVEX_CELL) -> lis
         best = None
         for key in np.unique(lo * (len(parts) + 1) + hi):
             a, b = divmod(int(key), len(parts) + 1)
-            union = parts[a - 1] | parts[b - 1]
-            ys, xs = np.nonzero(union)
-            solidity = _solidity(union[ys.min() : ys.max() + 1, xs.min() : xs.max() + 1])
-            if solidity >= convex and (best is None or solidity > best[0]):
-                best = (solidity, a, b)
+            pair = (tokens[a - 1], tokens[b - 1])
+            if pair not in solidity:
+                union = parts[a - 1] | parts[b - 1]
+                ys, xs = np.nonzero(union)
+                solidity[pair] = _solidity(union[ys.min() : ys.max() + 1, xs.min() : xs.max() + 1])
+            if solidity[pair] >= convex and (best is None or solidity[pair] > best[0]):
+                best = (solidity[pair], a, b)
         if best is None:
             break
         _, a, b = best
         parts[a - 1] = parts[a - 1] | parts[b - 1]
-        del parts[b - 1]
+        tokens[a - 1] = max(tokens) + 1
+        del parts[b - 1], tokens[b - 1]
     return parts
+
+
+def label_image(parts: list[NDArray[np.bool_]]) -> NDArray[np.int32]:
+    """Parts on one grid as labels 1..n in list order (0 elsewhere); where parts
+    overlap, the first keeps the pixel."""
+    labels = np.zeros(parts[0].shape, np.int32)
+    for i, part in enumerate(parts, start=1):
+        labels[part & (labels == 0)] = i
+    return labels
 
 
 def territories(regions: list[NDArray[np.bool_]]) -> NDArray[np.int32]:
@@ -250,9 +264,7 @@ def territories(regions: list[NDArray[np.bool_]]) -> NDArray[np.int32]:
 
     if not regions:
         raise ValueError("territories of no region")
-    labels = np.zeros(regions[0].shape, np.int32)
-    for i, region in enumerate(regions, start=1):
-        labels[region & (labels == 0)] = i
+    labels = label_image(regions)
     if len(regions) == 1:
         return np.ones_like(labels)
     # The Voronoi cells of the regions: OpenCV labels each ground pixel by its
