@@ -101,6 +101,7 @@ from rockscan.core.errors import NoRockFoundError, ParameterError
 from rockscan.core.segment.channels import _LUMA, _at_scale, _channels, _check_pixels, _pyramid, _unit
 from rockscan.core.segment.choose import choose
 from rockscan.core.segment.detect import _detect, _Detection, _luminance_polarity
+from rockscan.core.segment.pebbles import pebbles_off
 from rockscan.core.segment.split import opened, split_blobs, split_necks, territories
 from rockscan.core.segment.trace import _disk, _fill_holes, _from_alpha, _outline_rock, _scored
 from rockscan.core.segment.types import CONFIDENT_SCORE, RockMask, Segmentation, SegmentConfig
@@ -161,6 +162,14 @@ def segment(
     docstring.
     """
     config = config or SegmentConfig()
+    found = _main_rock(pixels, config, all_rocks=all_rocks)
+    if all_rocks or found.channel == "alpha":
+        return found
+    return _pebbles_off(found)
+
+
+def _main_rock(pixels: NDArray[np.generic], config: SegmentConfig, *, all_rocks: bool) -> Segmentation:
+    """The fast path's segmentation, or the candidate the choice takes, scored by its probability."""
     pool = _candidate_pool(pixels, config, all_rocks=all_rocks, fast=True)
     if isinstance(pool, Segmentation):
         return pool
@@ -174,6 +183,28 @@ def segment(
     candidates = candidates + pool.refined()
     index, probability = choose(*zip(*candidates, strict=True))
     return _main_scored(candidates[index][0], probability)
+
+
+def _pebbles_off(found: Segmentation) -> Segmentation:
+    """The main rock with the pebbles that touch it cut off (``pebbles.pebbles_off``).
+
+    The choice prefers outlines without pebbles, but the fast path and the
+    best candidate may still carry one: a pebble as dark as the rock joins
+    every cue's region. Cut off along its contact, it leaves the rock's own
+    edge as it was outlined. Other rocks of the segmentation are left as
+    they are.
+    """
+    rock = found.rocks[0]
+    kept = pebbles_off(rock.mask)
+    if kept is rock.mask:
+        return found
+    cut = rock.mask & ~kept
+    main = dataclasses.replace(rock, mask=kept, coverage=np.where(cut, 0.0, rock.coverage).astype(np.float32))
+    labels = found.labels.copy()
+    r0, c0 = rock.origin_rowcol
+    view = labels[r0 : r0 + cut.shape[0], c0 : c0 + cut.shape[1]]
+    view[cut & (view == 1)] = 0
+    return dataclasses.replace(found, labels=labels, rocks=(main, *found.rocks[1:]))
 
 
 #: The choice model's probability from which the detected candidates' choice stands unrefined.

@@ -42,7 +42,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from rockscan.core.segment import choice_model
-from rockscan.core.segment.split import opened
+from rockscan.core.segment.pebbles import pebble_share
 from rockscan.core.segment.types import Segmentation
 
 __all__ = ["FEATURES", "MONOTONE", "choice_features", "choice_probabilities", "choose", "pebble_share"]
@@ -113,21 +113,6 @@ MONOTONE = {
 _GRID = 96
 #: How many of the most overlapping other candidates the consensus averages.
 _CONSENSUS_OF = 3
-#: A piece counts as a pebble when the disk inscribed in it has at least this
-#: share of the radius of a disk of its area (a blunt lobe, not a star's arm).
-_PEBBLE_ROUNDNESS = 0.6
-#: ... and when that disk's diameter is at least this share of the piece's
-#: contact with the body: a pebble meets the rock at a neck, a star's tip
-#: is widest where it joins the body (measured: 0.24-0.38 for the tips of
-#: rendered stars, mostly 0.45-1.3 for generated touching pebbles).
-_PEBBLE_NECK = 0.45
-#: At least this many round pieces, the largest at most ``_LOBES_ALIKE``
-#: times the smallest, are lobes of the rock's own shape.
-_LOBES = 3
-_LOBES_ALIKE = 2.0
-#: Pebble shares are measured with the region scaled to at most this
-#: equivalent radius, in pixels (the share does not depend on resolution).
-_PEBBLE_RADIUS = 40.0
 
 
 def _grid_mask(found: Segmentation) -> NDArray[np.bool_]:
@@ -135,68 +120,6 @@ def _grid_mask(found: Segmentation) -> NDArray[np.bool_]:
 
     main = (found.labels == 1).astype(np.float32)
     return cv2.resize(main, (_GRID, _GRID), interpolation=cv2.INTER_AREA) >= 0.5
-
-
-def pebble_share(mask: NDArray[np.bool_]) -> float:
-    """Share of a region's area in round pieces that an opening takes off its body.
-
-    The region is opened as the "opened" candidates are
-    (``split.opened``); what the opening takes off, apart from the largest
-    remaining body, falls into pieces. A piece whose inscribed disk has at least
-    ``_PEBBLE_ROUNDNESS`` of the radius of a disk of its area is a blunt,
-    round lobe, and one whose inscribed diameter is at least ``_PEBBLE_NECK``
-    of its contact with the body meets it at a neck: such a piece is a
-    pebble touching the rock. Thin pieces (rough edges) and pieces that are
-    widest where they join the body (the tips of a star) do not count, nor do
-    round pieces when there are ``_LOBES`` or more of much the same size:
-    lobes all round are the rock's own shape.
-
-    Parameters
-    ----------
-    mask : (h, w) ndarray of bool
-
-    Returns
-    -------
-    share : float
-        In [0, 1]; 0 for an empty region or one without round pieces.
-    """
-    import cv2
-
-    ys, xs = np.nonzero(mask)
-    if ys.size < 30:
-        return 0.0
-    region = mask[ys.min() : ys.max() + 1, xs.min() : xs.max() + 1]
-    radius = math.sqrt(ys.size / math.pi)
-    if radius > _PEBBLE_RADIUS:
-        scale = _PEBBLE_RADIUS / radius
-        shape = (max(1, round(region.shape[1] * scale)), max(1, round(region.shape[0] * scale)))
-        region = cv2.resize(region.astype(np.float32), shape, interpolation=cv2.INTER_AREA) >= 0.5
-    region = np.pad(region, 2)
-    body = opened(region)
-    if body is None:
-        return 0.0
-    count, pieces, stats, _ = cv2.connectedComponentsWithStats((region & ~body).astype(np.uint8))
-    # The pieces are apart, so one distance map gives each its inscribed radius.
-    inside = pieces > 0
-    distance = cv2.distanceTransform(inside.astype(np.uint8), cv2.DIST_L2, 5)
-    inscribed = np.zeros(count)
-    np.maximum.at(inscribed, pieces[inside], distance[inside])
-    rim = cv2.dilate(body.astype(np.uint8), np.ones((3, 3), np.uint8)).astype(bool)
-    contact = np.maximum(np.bincount(pieces[rim], minlength=count), 1)
-    size = stats[:, cv2.CC_STAT_AREA].astype(np.float64)
-    area = float(region.sum())
-    keep = (
-        (size >= max(4.0, 0.005 * area))
-        & (inscribed >= _PEBBLE_ROUNDNESS * np.sqrt(size / math.pi))
-        & (2.0 * inscribed >= _PEBBLE_NECK * contact)
-    )
-    keep[0] = False
-    pebbles = size[keep]
-    # Alike lobes all round are the rock's own shape (a lobed star, a
-    # Superformula of high symmetry), not pebbles that happen to touch it.
-    if pebbles.size >= _LOBES and pebbles.max() <= _LOBES_ALIKE * pebbles.min():
-        return 0.0
-    return float(pebbles.sum() / area)
 
 
 def _mutual_ious(candidates: Sequence[Segmentation]) -> NDArray[np.float64]:

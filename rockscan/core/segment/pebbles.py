@@ -1,0 +1,198 @@
+"""Pebbles that touch a rock and join its region: how much of it they are, and taking them off.
+
+A pebble that touches a rock is as dark (or light) as the rock and joins its
+region at any threshold; the outline then runs round both, and the photo
+supports it all round. What gives a pebble away is its shape against the
+body: opened by a disk (``split.opened``), the region loses whatever hangs
+off it at a contact narrower than the disk, and of those pieces a pebble is
+*round* (the disk inscribed in it nearly as large as a disk of its area) and
+meets the body at a *neck* (its inscribed diameter at least about half its
+contact with the body). The tips of a star are neither: they taper, and are
+widest where they join. Lobes of the rock's own shape (a lobed star, a
+Superformula of high symmetry) are round and necked too, but they come as
+several pieces of much the same size all round the body; pebbles touch a
+rock where they happen to lie.
+
+Two uses:
+
+* :func:`pebble_share`, a feature of the choice among candidate outlines
+  (``rockscan.core.segment.choose``): the share of a candidate's area in
+  round pieces;
+* :func:`pebbles_off`, the last step on the main rock's outline: the
+  pebbles cut off along their contacts, the rock's own edge left where it is.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+
+from rockscan.core.segment.split import opened
+
+__all__ = ["pebble_share", "pebbles_off"]
+
+#: A piece counts as a pebble when the disk inscribed in it has at least this
+#: share of the radius of a disk of its area (a blunt lobe, not a star's arm).
+ROUNDNESS = 0.6
+#: ... and when that disk's diameter is at least this share of the piece's
+#: contact with the body: a pebble meets the rock at a neck, a star's tip
+#: is widest where it joins the body (measured: 0.24-0.38 for the tips of
+#: rendered stars, mostly 0.45-1.3 for generated touching pebbles).
+NECK = 0.45
+#: At least this many round pieces, the largest at most ``LOBES_ALIKE``
+#: times the smallest, are lobes of the rock's own shape.
+LOBES = 3
+LOBES_ALIKE = 2.0
+#: Regions are measured scaled to at most this equivalent radius, in pixels
+#: (what is a pebble does not depend on resolution).
+RADIUS = 40.0
+#: Radius of the opening that :func:`pebbles_off` cuts with, in equivalent
+#: radii of the region: wider than the opened candidates' (``split.OPEN_SHARE``),
+#: since a pebble pressed against a rock meets it along a contact nearly as
+#: wide as itself. Set on the development part of the segmentation benchmark.
+CUT_SHARE = 0.3
+#: Alike pieces whose directions from the body's centre average to a
+#: resultant under this length lie all round it: lobes, not pebbles.
+LOBES_SPREAD = 0.5
+
+
+@dataclass(frozen=True)
+class _Pieces:
+    """What an opening takes off a region: labelled pieces and what each is like."""
+
+    region: NDArray[np.bool_]
+    body: NDArray[np.bool_]
+    labels: NDArray[np.int32]
+    size: NDArray[np.float64]
+    round_necked: NDArray[np.bool_]
+
+
+def _pieces(mask: NDArray[np.bool_], share: float) -> _Pieces | None:
+    """The region in its bounding box (scaled to at most ``RADIUS``, padded by 2)
+    and the pieces an opening of ``share`` takes off it; None if there are none."""
+    import cv2
+
+    ys, xs = np.nonzero(mask)
+    if ys.size < 30:
+        return None
+    region = mask[ys.min() : ys.max() + 1, xs.min() : xs.max() + 1]
+    radius = math.sqrt(ys.size / math.pi)
+    if radius > RADIUS:
+        scale = RADIUS / radius
+        shape = (max(1, round(region.shape[1] * scale)), max(1, round(region.shape[0] * scale)))
+        region = cv2.resize(region.astype(np.float32), shape, interpolation=cv2.INTER_AREA) >= 0.5
+    region = np.pad(region, 2)
+    body = opened(region, share)
+    if body is None:
+        return None
+    count, labels, stats, _ = cv2.connectedComponentsWithStats((region & ~body).astype(np.uint8))
+    # The pieces are apart, so one distance map gives each its inscribed radius.
+    inside = labels > 0
+    distance = cv2.distanceTransform(inside.astype(np.uint8), cv2.DIST_L2, 5)
+    inscribed = np.zeros(count)
+    np.maximum.at(inscribed, labels[inside], distance[inside])
+    rim = cv2.dilate(body.astype(np.uint8), np.ones((3, 3), np.uint8)).astype(bool)
+    contact = np.maximum(np.bincount(labels[rim], minlength=count), 1)
+    size = stats[:, cv2.CC_STAT_AREA].astype(np.float64)
+    round_necked = (
+        (size >= max(4.0, 0.005 * float(region.sum())))
+        & (inscribed >= ROUNDNESS * np.sqrt(size / math.pi))
+        & (2.0 * inscribed >= NECK * contact)
+    )
+    round_necked[0] = False
+    return _Pieces(region, body, labels, size, round_necked)
+
+
+def pebble_share(mask: NDArray[np.bool_]) -> float:
+    """Share of a region's area in round pieces that an opening takes off its body.
+
+    The region is opened as the "opened" candidates are (``split.opened``);
+    of what the opening takes off, a piece is a pebble when it is round and
+    meets the body at a neck (module docstring). Thin pieces (rough edges)
+    and the tips of a star do not count, nor do round pieces when there are
+    ``LOBES`` or more of much the same size: lobes all round are the rock's
+    own shape.
+
+    Parameters
+    ----------
+    mask : (h, w) ndarray of bool
+
+    Returns
+    -------
+    share : float
+        In [0, 1]; 0 for an empty region or one without round pieces.
+    """
+    found = _pieces(mask, share=0.2)
+    if found is None:
+        return 0.0
+    pebbles = found.size[found.round_necked]
+    # Alike lobes all round are the rock's own shape (a lobed star, a
+    # Superformula of high symmetry), not pebbles that happen to touch it.
+    if pebbles.size >= LOBES and pebbles.max() <= LOBES_ALIKE * pebbles.min():
+        return 0.0
+    return float(pebbles.sum() / found.region.sum())
+
+
+def pebbles_off(mask: NDArray[np.bool_]) -> NDArray[np.bool_]:
+    """The region with the pebbles that touch it cut off along their contacts.
+
+    Pieces an opening by a disk of ``CUT_SHARE`` of the region's equivalent
+    radius takes off are pebbles when they are round and meet the body at a
+    neck (module docstring). When ``LOBES`` or more pieces of much the same
+    size as the pebbles lie all round the body (their directions from its
+    centre average to a resultant under ``LOBES_SPREAD``), they are the
+    rock's own lobes and nothing is cut. Only the pebbles' pixels go: the
+    rock keeps its own edge, and its corners, where they are.
+
+    Parameters
+    ----------
+    mask : (h, w) ndarray of bool
+        One region.
+
+    Returns
+    -------
+    (h, w) ndarray of bool
+        The largest part of the region left once the pebbles are off;
+        ``mask`` itself when there are none.
+    """
+    import cv2
+
+    found = _pieces(mask, CUT_SHARE)
+    if found is None or not found.round_necked.any():
+        return mask
+    typical = float(np.median(found.size[found.round_necked]))
+    # Any piece of much the pebbles' size counts towards lobes, round or not:
+    # the arms of a star are cut off as several pieces, only some of them round.
+    alike = np.flatnonzero(
+        (found.size >= max(4.0, 0.005 * float(found.region.sum())))
+        & (found.size <= LOBES_ALIKE * typical)
+        & (LOBES_ALIKE * found.size >= typical)
+    )
+    alike = alike[alike > 0]
+    if alike.size >= LOBES:
+        by, bx = np.nonzero(found.body)
+        rows = np.bincount(found.labels.ravel(), weights=np.indices(found.labels.shape)[0].ravel())
+        cols = np.bincount(found.labels.ravel(), weights=np.indices(found.labels.shape)[1].ravel())
+        angles = np.arctan2(
+            rows[alike] / found.size[alike] - by.mean(), cols[alike] / found.size[alike] - bx.mean()
+        )
+        if abs(np.exp(1j * angles).mean()) < LOBES_SPREAD:
+            return mask
+    pebbles = found.round_necked[found.labels][2:-2, 2:-2]
+    ys, xs = np.nonzero(mask)
+    r0, r1, c0, c1 = ys.min(), ys.max() + 1, xs.min(), xs.max() + 1
+    if pebbles.shape != (r1 - r0, c1 - c0):
+        pebbles = (
+            cv2.resize(pebbles.astype(np.float32), (c1 - c0, r1 - r0), interpolation=cv2.INTER_LINEAR) >= 0.5
+        )
+    kept = mask.copy()
+    kept[r0:r1, c0:c1] &= ~pebbles
+    count, labels, stats, _ = cv2.connectedComponentsWithStats(kept.astype(np.uint8), connectivity=4)
+    if count < 2:
+        return mask
+    if count > 2:
+        kept = labels == 1 + int(np.argmax(stats[1:, cv2.CC_STAT_AREA]))
+    return kept
