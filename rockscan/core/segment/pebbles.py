@@ -63,6 +63,7 @@ LOBES_SPREAD = 0.5
 class _Pieces:
     """What an opening takes off a region: labelled pieces and what each is like."""
 
+    box: tuple[int, int, int, int]
     region: NDArray[np.bool_]
     body: NDArray[np.bool_]
     labels: NDArray[np.int32]
@@ -75,11 +76,13 @@ def _pieces(mask: NDArray[np.bool_], share: float) -> _Pieces | None:
     and the pieces an opening of ``share`` takes off it; None if there are none."""
     import cv2
 
-    ys, xs = np.nonzero(mask)
-    if ys.size < 30:
+    area = int(np.count_nonzero(mask))
+    if area < 30:
         return None
-    region = mask[ys.min() : ys.max() + 1, xs.min() : xs.max() + 1]
-    radius = math.sqrt(ys.size / math.pi)
+    rows, cols = np.flatnonzero(mask.any(axis=1)), np.flatnonzero(mask.any(axis=0))
+    box = (int(rows[0]), int(rows[-1]) + 1, int(cols[0]), int(cols[-1]) + 1)
+    region = mask[box[0] : box[1], box[2] : box[3]]
+    radius = math.sqrt(area / math.pi)
     if radius > RADIUS:
         scale = RADIUS / radius
         shape = (max(1, round(region.shape[1] * scale)), max(1, round(region.shape[0] * scale)))
@@ -103,7 +106,7 @@ def _pieces(mask: NDArray[np.bool_], share: float) -> _Pieces | None:
         & (2.0 * inscribed >= NECK * contact)
     )
     round_necked[0] = False
-    return _Pieces(region, body, labels, size, round_necked)
+    return _Pieces(box, region, body, labels, size, round_necked)
 
 
 def pebble_share(mask: NDArray[np.bool_]) -> float:
@@ -182,8 +185,7 @@ def pebbles_off(mask: NDArray[np.bool_]) -> NDArray[np.bool_]:
         if abs(np.exp(1j * angles).mean()) < LOBES_SPREAD:
             return mask
     pebbles = found.round_necked[found.labels][2:-2, 2:-2]
-    ys, xs = np.nonzero(mask)
-    r0, r1, c0, c1 = ys.min(), ys.max() + 1, xs.min(), xs.max() + 1
+    r0, r1, c0, c1 = found.box
     if pebbles.shape != (r1 - r0, c1 - c0):
         pebbles = (
             cv2.resize(pebbles.astype(np.float32), (c1 - c0, r1 - r0), interpolation=cv2.INTER_LINEAR) >= 0.5
