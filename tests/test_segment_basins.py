@@ -99,3 +99,29 @@ def test_opening_keeps_a_disk_whole_and_in_place(radius, row, col):
     # A disk is open already: only the digital disk's corner pixels may go.
     assert not (opened & ~disk).any()
     assert opened.sum() >= 0.97 * disk.sum()
+
+
+@settings(max_examples=25, deadline=None)
+@given(
+    radius=st.integers(15, 45),
+    share=st.sampled_from([0.2, 0.3]),
+    pebbles=st.lists(st.tuples(st.floats(0, 2 * np.pi), st.floats(3, 12)), min_size=0, max_size=4),
+)
+def test_opening_by_distance_maps_is_the_disk_opening_up_to_pieces_as_wide_as_the_disk(
+    radius, share, pebbles
+):
+    rr, cc = np.mgrid[:140, :140]
+    mask = np.hypot(rr - 70, cc - 70) <= radius
+    for angle, size in pebbles:
+        mask |= (
+            np.hypot(rr - 70 - (radius + 2) * np.sin(angle), cc - 70 - (radius + 2) * np.cos(angle)) <= size
+        )
+    kernel, distance = _opened(mask, share), _opened(mask, share, by_distance=True)
+    assert (kernel is None) == (distance is None)
+    if kernel is None:
+        return
+    assert not (distance & ~mask).any()
+    # They differ by a pixel along the edge, and on a pebble about as wide as
+    # the disk, which one keeps and the other takes off (IoU 0.94 at worst
+    # in 2,000 random cases, median 0.996).
+    assert (kernel & distance).sum() / (kernel | distance).sum() > 0.93

@@ -71,7 +71,7 @@ class _Pieces:
     round_necked: NDArray[np.bool_]
 
 
-def _pieces(mask: NDArray[np.bool_], share: float) -> _Pieces | None:
+def _pieces(mask: NDArray[np.bool_], share: float, *, by_distance: bool = False) -> _Pieces | None:
     """The region in its bounding box (scaled to at most ``RADIUS``, padded by 2)
     and the pieces an opening of ``share`` takes off it; None if there are none."""
     import cv2
@@ -88,7 +88,7 @@ def _pieces(mask: NDArray[np.bool_], share: float) -> _Pieces | None:
         shape = (max(1, round(region.shape[1] * scale)), max(1, round(region.shape[0] * scale)))
         region = cv2.resize(region.astype(np.float32), shape, interpolation=cv2.INTER_AREA) >= 0.5
     region = np.pad(region, 2)
-    body = opened(region, share)
+    body = opened(region, share, by_distance=by_distance)
     if body is None:
         return None
     count, labels, stats, _ = cv2.connectedComponentsWithStats((region & ~body).astype(np.uint8))
@@ -163,7 +163,7 @@ def pebbles_off(mask: NDArray[np.bool_]) -> NDArray[np.bool_]:
     """
     import cv2
 
-    found = _pieces(mask, CUT_SHARE)
+    found = _pieces(mask, CUT_SHARE, by_distance=True)
     if found is None or not found.round_necked.any():
         return mask
     typical = float(np.median(found.size[found.round_necked]))

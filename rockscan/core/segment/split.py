@@ -159,7 +159,9 @@ def split_blobs(mask: NDArray[np.bool_]) -> list[NDArray[np.bool_]]:
 OPEN_SHARE = 0.2
 
 
-def opened(mask: NDArray[np.bool_], share: float = OPEN_SHARE) -> NDArray[np.bool_] | None:
+def opened(
+    mask: NDArray[np.bool_], share: float = OPEN_SHARE, *, by_distance: bool = False
+) -> NDArray[np.bool_] | None:
     """The mask opened by a disk of ``share`` of its equivalent radius, its largest part kept.
 
     Pebbles that touch a rock join it at contacts narrower than they are:
@@ -170,6 +172,12 @@ def opened(mask: NDArray[np.bool_], share: float = OPEN_SHARE) -> NDArray[np.boo
     mask : (rows, cols) ndarray of bool
     share : float
         Radius of the disk, in equivalent radii of the mask.
+    by_distance : bool
+        Erode and dilate by thresholds of distance maps rather than with a
+        disk kernel: a fraction of the cost for a disk of 10 pixels and
+        more. The result differs from the kernel's by a pixel along the
+        edge, and on pieces about as wide as the disk, which one keeps and
+        the other takes off.
 
     Returns
     -------
@@ -182,8 +190,16 @@ def opened(mask: NDArray[np.bool_], share: float = OPEN_SHARE) -> NDArray[np.boo
     size = round(share * radius)
     if size < 2:
         return None
-    disk = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * size + 1, 2 * size + 1))
-    body = cv2.morphologyEx(mask.astype(np.uint8), cv2.MORPH_OPEN, disk)
+    if by_distance:
+        # The quarter pixel matches OpenCV's elliptic kernel of side 2 size + 1 best.
+        reach = size + 0.25
+        core = cv2.distanceTransform(mask.astype(np.uint8), cv2.DIST_L2, 5) > reach
+        body = ((cv2.distanceTransform((~core).astype(np.uint8), cv2.DIST_L2, 5) <= reach) & mask).astype(
+            np.uint8
+        )
+    else:
+        disk = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * size + 1, 2 * size + 1))
+        body = cv2.morphologyEx(mask.astype(np.uint8), cv2.MORPH_OPEN, disk)
     count, labels, stats, _ = cv2.connectedComponentsWithStats(body, connectivity=4)
     if count < 2:
         return None
