@@ -77,6 +77,13 @@ Steps (see :func:`segment`):
    is kept. Besides the mask, a coverage map rising from 0 to 1
    across the edge lets :func:`rockscan.core.outline.trace_outline` place the
    outline between pixels.
+7. **Candidates and choice** (photos of one rock): other cues outline the
+   main rock too, and a model fitted on the segmentation benchmark's
+   development part chooses among them (``rockscan.core.segment.choose``).
+8. **Pebbles off.** Round pieces that hang off the chosen outline at a neck
+   (touching pebbles, which join every cue's region) are cut off along
+   their contacts (``rockscan.core.segment.pebbles``); lobes all round it are
+   the rock's own shape and stay.
 
 Known limits: a shadow darker than half-way between ground and rock joins a
 dark rock; a pebble or a patch of ground as light (or dark) as the rock and

@@ -175,15 +175,8 @@ def pebbles_off(mask: NDArray[np.bool_]) -> NDArray[np.bool_]:
         & (LOBES_ALIKE * found.size >= typical)
     )
     alike = alike[alike > 0]
-    if alike.size >= LOBES:
-        by, bx = np.nonzero(found.body)
-        rows = np.bincount(found.labels.ravel(), weights=np.indices(found.labels.shape)[0].ravel())
-        cols = np.bincount(found.labels.ravel(), weights=np.indices(found.labels.shape)[1].ravel())
-        angles = np.arctan2(
-            rows[alike] / found.size[alike] - by.mean(), cols[alike] / found.size[alike] - bx.mean()
-        )
-        if abs(np.exp(1j * angles).mean()) < LOBES_SPREAD:
-            return mask
+    if alike.size >= LOBES and _all_round(found, alike):
+        return mask
     pebbles = found.round_necked[found.labels][2:-2, 2:-2]
     r0, r1, c0, c1 = found.box
     if pebbles.shape != (r1 - r0, c1 - c0):
@@ -198,3 +191,17 @@ def pebbles_off(mask: NDArray[np.bool_]) -> NDArray[np.bool_]:
     if count > 2:
         kept = labels == 1 + int(np.argmax(stats[1:, cv2.CC_STAT_AREA]))
     return kept
+
+
+def _all_round(found: _Pieces, pieces: NDArray[np.int64]) -> bool:
+    """Whether the pieces lie all round the body: their directions from its centre
+    average to a resultant shorter than ``LOBES_SPREAD``."""
+    rows, cols = np.indices(found.labels.shape)
+    row_sums = np.bincount(found.labels.ravel(), weights=rows.ravel())
+    col_sums = np.bincount(found.labels.ravel(), weights=cols.ravel())
+    body_rows, body_cols = np.nonzero(found.body)
+    angles = np.arctan2(
+        row_sums[pieces] / found.size[pieces] - body_rows.mean(),
+        col_sums[pieces] / found.size[pieces] - body_cols.mean(),
+    )
+    return bool(abs(np.exp(1j * angles).mean()) < LOBES_SPREAD)
