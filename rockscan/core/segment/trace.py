@@ -227,12 +227,13 @@ def _level(
         # Red and blue less luminance, flattened like the brightness. Hue varies
         # slowly on a rock and JPEG stores it in coarse blocks: the outline's
         # position is left to the brightness, whose edge is sharp.
-        hue = cv2.transform(window, _HUE_MATRIX) * inverse[..., None]
+        hue = cv2.transform(window, _HUE_MATRIX)
+        hue *= inverse[..., None]
         hue = cv2.GaussianBlur(hue, (0, 0), _HUE_SIGMA).reshape(-1, 2)
         features_r = np.column_stack([rock_lum, hue[core_at]]).astype(np.float64)
         features_g = np.column_stack([ground_lum, hue[ring_at]]).astype(np.float64)
         if features_r.shape[0] > 8 and features_g.shape[0] > 8:
-            pooled = 0.5 * (np.cov(features_r.T) + np.cov(features_g.T))
+            pooled = 0.5 * (_covariance(features_r) + _covariance(features_g))
             pooled[np.diag_indices(3)] += 1e-6 * max(float(np.trace(pooled)), 1e-9)
             difference = features_r.mean(axis=0) - features_g.mean(axis=0)
             weights = np.linalg.solve(pooled, difference)
@@ -253,6 +254,12 @@ def _level(
     if not math.isfinite(step) or abs(step) < 1e-9:
         return None
     return ((projected - np.float32(ground_level)) / np.float32(step)).astype(np.float32)
+
+
+def _covariance(samples: NDArray[np.float64]) -> NDArray[np.float64]:
+    """Sample covariance of the rows' features (``np.cov`` of the transpose, without its checks)."""
+    centred = samples - samples.mean(axis=0)
+    return centred.T @ centred / (samples.shape[0] - 1)
 
 
 def _sample_at(mask: NDArray[np.bool_], limit: int = 4096) -> NDArray[np.int64]:
