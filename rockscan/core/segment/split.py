@@ -194,9 +194,8 @@ def opened(
         # The quarter pixel matches OpenCV's elliptic kernel of side 2 size + 1 best.
         reach = size + 0.25
         core = cv2.distanceTransform(mask.astype(np.uint8), cv2.DIST_L2, 5) > reach
-        body = ((cv2.distanceTransform((~core).astype(np.uint8), cv2.DIST_L2, 5) <= reach) & mask).astype(
-            np.uint8
-        )
+        grown = cv2.distanceTransform((~core).astype(np.uint8), cv2.DIST_L2, 5) <= reach
+        body = (grown & mask).astype(np.uint8)
     else:
         disk = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * size + 1, 2 * size + 1))
         body = cv2.morphologyEx(mask.astype(np.uint8), cv2.MORPH_OPEN, disk)
