@@ -109,7 +109,7 @@ from rockscan.core.segment.channels import _LUMA, _at_scale, _channels, _check_p
 from rockscan.core.segment.choose import choose
 from rockscan.core.segment.detect import _detect, _Detection, _luminance_polarity
 from rockscan.core.segment.pebbles import pebbles_off
-from rockscan.core.segment.split import opened, split_blobs, split_necks, territories
+from rockscan.core.segment.split import largest_part, opened, split_blobs, split_necks, territories
 from rockscan.core.segment.trace import _disk, _fill_holes, _from_alpha, _outline_rock, _scored
 from rockscan.core.segment.types import CONFIDENT_SCORE, RockMask, Segmentation, SegmentConfig
 
@@ -620,12 +620,11 @@ def _grabcut_box(
         return None
     fg = ((trimap == cv2.GC_FGD) | (trimap == cv2.GC_PR_FGD)).astype(np.float32)
     fg = cv2.resize(fg, (C1 - C0, R1 - R0), interpolation=cv2.INTER_LINEAR) >= 0.5
-    count, labels, stats, _ = cv2.connectedComponentsWithStats(fg.astype(np.uint8), connectivity=4)
-    if count < 2:
+    biggest = largest_part(fg)
+    if biggest is None:
         return None
-    biggest = 1 + int(np.argmax(stats[1:, cv2.CC_STAT_AREA]))
     out = np.zeros((rows, cols), bool)
-    out[R0:R1, C0:C1] = _fill_holes(labels == biggest)
+    out[R0:R1, C0:C1] = _fill_holes(biggest)
     return out
 
 

@@ -30,7 +30,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-from rockscan.core.segment.split import opened
+from rockscan.core.segment.split import largest_part, opened
 
 __all__ = ["pebble_share", "pebbles_off"]
 
@@ -188,12 +188,8 @@ def pebbles_off(mask: NDArray[np.bool_]) -> NDArray[np.bool_]:
         )
     kept = mask.copy()
     kept[r0:r1, c0:c1] &= ~pebbles
-    count, labels, stats, _ = cv2.connectedComponentsWithStats(kept.astype(np.uint8), connectivity=4)
-    if count < 2:
-        return mask
-    if count > 2:
-        kept = labels == 1 + int(np.argmax(stats[1:, cv2.CC_STAT_AREA]))
-    return kept
+    part = largest_part(kept)
+    return mask if part is None else part
 
 
 def _all_round(found: _Pieces, pieces: NDArray[np.int64]) -> bool:

@@ -28,7 +28,16 @@ from collections.abc import Callable
 import numpy as np
 from numpy.typing import NDArray
 
-__all__ = ["label_image", "opened", "rejoined", "split_blobs", "split_necks", "split_rocks", "territories"]
+__all__ = [
+    "label_image",
+    "largest_part",
+    "opened",
+    "rejoined",
+    "split_blobs",
+    "split_necks",
+    "split_rocks",
+    "territories",
+]
 
 #: A pass between two humps of contrast at least this share of the lower top
 #: joins them (texture on one rock); below it they are two rocks.
@@ -199,7 +208,14 @@ def opened(
     else:
         disk = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * size + 1, 2 * size + 1))
         body = cv2.morphologyEx(mask.astype(np.uint8), cv2.MORPH_OPEN, disk)
-    count, labels, stats, _ = cv2.connectedComponentsWithStats(body, connectivity=4)
+    return largest_part(body)
+
+
+def largest_part(mask: NDArray[np.bool_] | NDArray[np.uint8]) -> NDArray[np.bool_] | None:
+    """The largest 4-connected part of a mask, or None when the mask is empty."""
+    import cv2
+
+    count, labels, stats, _ = cv2.connectedComponentsWithStats(mask.astype(np.uint8), connectivity=4)
     if count < 2:
         return None
     return labels == 1 + int(np.argmax(stats[1:, cv2.CC_STAT_AREA]))
