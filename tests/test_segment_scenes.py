@@ -108,3 +108,13 @@ def test_pebbles_pressed_against_the_rock_are_cut_off_its_outline(index):
     # pebbles were cut off the main rock along their contacts (0.97 both).
     score = judged("touching-pebbles", index)
     assert score.iou >= 0.95, round(score.iou, 3)
+
+
+@pytest.mark.parametrize(("condition", "index"), [("plain", 17), ("shaded", 6)])
+def test_a_cast_shadow_that_joined_a_dark_rock_is_cut_off_its_outline(condition, index):
+    # Development photos of a dark rock beside its cast shadow, darker than
+    # half-way to the ground: every cue outlined rock and shadow together
+    # (IoU 0.90 and 0.76) until the shadow was cut off along the rock's
+    # edge (0.98 and 0.97).
+    score = judged(condition, index)
+    assert score.iou >= 0.95, round(score.iou, 3)

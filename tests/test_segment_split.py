@@ -103,7 +103,9 @@ def test_two_pieces_of_one_disc_are_rejoined_and_two_touching_discs_are_not():
 
 
 @settings(max_examples=30, deadline=None)
-@given(st.lists(st.tuples(st.integers(0, 50), st.integers(0, 50), st.integers(3, 12)), min_size=1, max_size=6))
+@given(
+    st.lists(st.tuples(st.integers(0, 50), st.integers(0, 50), st.integers(3, 12)), min_size=1, max_size=6)
+)
 def test_rejoined_parts_cover_the_same_pixels_once(discs):
     yy, xx = np.mgrid[:64, :64]
     taken = np.zeros((64, 64), bool)

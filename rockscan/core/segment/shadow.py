@@ -1,0 +1,329 @@
+"""A cast shadow that joins a dark rock's outline, and taking it off.
+
+Lit from one side, a rock casts a shadow on the ground beside it. The
+shadow is the ground's own surface, darkened. Beside a light rock it is
+darker than the ground and never looks like rock; beside a dark rock it
+may lie past half-way from the ground's level to the rock's, and the
+outline (``rockscan.core.segment.trace``) then runs round rock and shadow
+together. Every cue's region takes it in: the shadow differs from the lit
+ground as much as the rock does.
+
+What gives it away is the profile across it, along rays from the rock's
+centre. Where rock and shadow meet, both are lit by the sky alone: the
+rock's shaded rim is darker than the shadow by the ratio of their albedos,
+and the rock's occluding edge is sharp. Going out along a ray on that side,
+the profile *rises* from the rock's dark rim to the shadow, stays flat
+across the shadow (darkened ground), and rises again at the shadow's edge
+to the lit ground. On a ray without a shadow, the one rise is at the outline.
+
+A ray shows a shadow when it rises, at least ``MIN_BAND`` pixels inside the
+outline's own blurred edge, by at least ``RISE`` of the step from the
+rock's level to the ground's (and ``NOISE`` times the ground's spread), from
+a valley no lighter than a little above the rock's level to a band that is
+flat (its interquartile range under ``FLAT`` of the step) and darker than
+the ground all the way to that edge. The shadow is taken off only when such
+rays form one arc of the outline (``MIN_ARC`` to ``MAX_ARC`` of it), along
+which the shadow's width changes smoothly (``ROUGH``), on the side away from
+the rock's lit side: texture on a rock makes such rises too, but at
+scattered depths and on any side. Along the arc, everything beyond the rise
+goes, unless that would lengthen the outline (``LONGER``): a cut along a
+rock's edge shortens it, while rays that graze the outline (near a sharp
+corner, along a star's arm) would notch it.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numpy.typing import NDArray
+
+from rockscan.core.segment.split import largest_part
+from rockscan.core.segment.trace import _fill_holes, _sample_at
+
+__all__ = ["shadow_off"]
+
+#: Rays cast from the rock's centre.
+RAYS = 256
+#: Spacing of the samples along a ray, in pixels.
+SPACING = 0.5
+#: Half the distance a rise is measured over, in pixels (the occluding edge
+#: is sharp: a few pixels of blur at most).
+HALF_RISE = 2.0
+#: Smallest rise, as a share of the step from the rock's level to the ground's.
+RISE = 0.35
+#: ... and in units of the ground's robust spread around the rock.
+NOISE = 2.0
+#: Least width of a shadow band, in pixels.
+MIN_BAND = 3.0
+#: Largest interquartile range of a band's profile, as a share of the step:
+#: a shadow is the ground darkened, flat beside the rock's own texture.
+FLAT = 0.3
+#: Shortest and longest arc of the outline a shadow lies along, as shares
+#: of the rays.
+MIN_ARC, MAX_ARC = 0.08, 0.8
+#: Largest median change of the shadow's width from one ray to the next, as
+#: a share of its median width (at least a pixel).
+ROUGH = 0.15
+#: Longest outline after the cut, as a share of the outline before it.
+LONGER = 1.05
+#: Smallest region, in pixels, that is looked at.
+MIN_AREA = 50
+#: Where the rock's and the ground's levels are read: the core lies over
+#: ``CORE`` equivalent radii inside the outline, the ring between ``RING``
+#: equivalent radii outside it (at least the pixels in ``RING_PIXELS``).
+CORE = 0.15
+RING = (0.12, 0.35)
+RING_PIXELS = (3.0, 6.0)
+
+
+def shadow_off(gray: NDArray[np.floating], mask: NDArray[np.bool_]) -> NDArray[np.bool_]:
+    """The rock's mask with a cast shadow that joined it taken off (module docstring).
+
+    Parameters
+    ----------
+    gray : (rows, cols) ndarray of float
+        Log brightness of the photo around the rock, on the mask's grid,
+        with a margin of at least a third of the rock's radius.
+    mask : (rows, cols) ndarray of bool
+        The rock's region (one piece, holes filled).
+
+    Returns
+    -------
+    (rows, cols) ndarray of bool
+        The rock without its shadow: one 4-connected piece, holes filled.
+        ``mask`` itself, unchanged, when no shadow was found.
+    """
+    import cv2
+
+    mask8 = mask.astype(np.uint8)
+    moments = cv2.moments(mask8, binaryImage=True)
+    area = moments["m00"]
+    if area < MIN_AREA:
+        return mask
+    levels = _levels(gray, mask8, math.sqrt(area / math.pi))
+    if levels is None:
+        return mask
+    rock, ground, noise = levels
+    step = ground - rock
+    # A light rock's shadow is darker than the ground: it never joins the rock.
+    if step <= 0:
+        return mask
+    centre = (moments["m01"] / area, moments["m10"] / area)
+    x, y, w, h = cv2.boundingRect(mask8)
+    corners = np.array([[y, x], [y, x + w], [y + h, x], [y + h, x + w]], np.float64)
+    reach = float(np.hypot(*(corners - centre).T).max()) + 2.0 * HALF_RISE + 2.0
+    angles = np.arange(RAYS) * (2.0 * math.pi / RAYS)
+    radii = np.arange(0.0, reach, SPACING)
+    map_x = (centre[1] + np.outer(np.cos(angles), radii)).astype(np.float32)
+    map_y = (centre[0] + np.outer(np.sin(angles), radii)).astype(np.float32)
+    inside = cv2.remap(mask8, map_x, map_y, cv2.INTER_NEAREST, borderValue=0) > 0
+    smooth = cv2.GaussianBlur(gray.astype(np.float32), (0, 0), 1.0)
+    profiles = cv2.remap(smooth, map_x, map_y, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
+    edges = _inner_edges(profiles, inside, rock, ground, step, noise)
+    if edges is None:
+        return mask
+    arc, limit, depth = edges
+    if not _smooth_arc(depth):
+        return mask
+    if not _away_from_light(gray, mask8, centre, angles[arc]):
+        return mask
+    kept = mask & (_beyond(mask.shape, centre, angles[arc], limit * SPACING + 0.5, reach) == 0)
+    if cv2.countNonZero(kept.view(np.uint8)) == area:
+        return mask
+    kept = largest_part(kept)
+    if kept is None:
+        return mask
+    kept = _fill_holes(kept)
+    # Cut off along the rock's edge, a shadow leaves an outline no longer
+    # than before; a cut that lengthens it has notched the rock (teeth at a
+    # sharp corner, a slit along an arm), where rays cross its edge obliquely.
+    if _perimeter(kept) > LONGER * _perimeter(mask):
+        return mask
+    return kept
+
+
+def _perimeter(mask: NDArray[np.bool_]) -> float:
+    """Length of the outer outline of a mask, in pixels."""
+    import cv2
+
+    contours, _ = cv2.findContours(mask.astype(np.uint8), cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_SIMPLE)
+    return float(sum(cv2.arcLength(c, True) for c in contours))
+
+
+def _levels(
+    gray: NDArray[np.floating], mask8: NDArray[np.uint8], radius: float
+) -> tuple[float, float, float] | None:
+    """The rock's level (median of its core), the ground's (median of a ring
+    round it) and the ground's robust spread; None without enough of either."""
+    import cv2
+
+    inside = cv2.distanceTransform(mask8, cv2.DIST_L2, 3)
+    outside = cv2.distanceTransform(1 - mask8, cv2.DIST_L2, 3)
+    core = inside > CORE * radius
+    near, far = max(RING_PIXELS[0], RING[0] * radius), max(RING_PIXELS[1], RING[1] * radius)
+    ring = (outside > near) & (outside <= far)
+    if core.sum() < 8 or ring.sum() < 8:
+        return None
+    # Medians of a few thousand evenly spaced pixels: the levels need no more.
+    ground_values = gray.ravel()[_sample_at(ring)]
+    rock, ground = float(np.median(gray.ravel()[_sample_at(core)])), float(np.median(ground_values))
+    noise = _spread(ground_values, ground)
+    return rock, ground, noise
+
+
+def _spread(values: NDArray[np.floating], median: float) -> float:
+    """Robust standard deviation (scaled median absolute deviation)."""
+    return 1.4826 * float(np.median(np.abs(values - median)))
+
+
+def _inner_edges(
+    profiles: NDArray[np.float32],
+    inside: NDArray[np.bool_],
+    rock: float,
+    ground: float,
+    step: float,
+    noise: float,
+) -> tuple[NDArray[np.int64], NDArray[np.float64], NDArray[np.float64]] | None:
+    """The arc of rays that show a shadow, where on each the rock ends
+    (sample index) and how wide the shadow is there (pixels); None without one."""
+    rays, length = profiles.shape
+    half = max(1, round(HALF_RISE / SPACING))
+    # First sample outside the region along each ray; a ray that starts
+    # outside (a concave region's centre) shows nothing.
+    leaves = np.argmax(~inside, axis=1)
+    usable = (~inside).any(axis=1) & (leaves >= 4)
+    index = np.arange(length)
+    rise = np.full(profiles.shape, -np.inf, np.float32)
+    rise[:, half : length - half] = profiles[:, 2 * half :] - profiles[:, : length - 2 * half]
+    lo = np.maximum((0.4 * leaves).astype(np.int64), half)
+    # The band must be flat for MIN_BAND pixels between the rise and the
+    # outline's own blurred edge (half a rise's width inside the outline).
+    edge = leaves - 1 - half
+    hi = edge - half - round(MIN_BAND / SPACING)
+    window = (index >= lo[:, None]) & (index < hi[:, None])
+    rise = np.where(window, rise, -np.inf)
+    at = np.argmax(rise, axis=1)
+    height = rise[np.arange(rays), at]
+    rows = np.arange(rays)
+    before = (index >= (at - 3 * half)[:, None]) & (index <= at[:, None])
+    valley = np.where(before, profiles, np.inf).min(axis=1)
+    shows = (
+        usable
+        & (hi - lo > 2)
+        & (height >= RISE * step)
+        & (height >= NOISE * noise)
+        & (valley <= rock + 0.25 * step)
+    )
+    if shows.sum() < MIN_ARC * rays * 0.6:
+        return None
+    # The band beyond the rise, on the rays still in question only (the
+    # quantiles sort every sample of a ray).
+    ask = rows[shows]
+    band = (index >= (at[ask] + half)[:, None]) & (index < edge[ask][:, None])
+    low, middle, high = _row_quantiles(profiles[ask], band, (0.25, 0.5, 0.75))
+    shows[ask] = (
+        (high - low <= FLAT * step) & (middle >= valley[ask] + RISE * step) & (middle <= ground - 0.25 * step)
+    )
+    arc = _longest_arc(shows)
+    if arc is None or not MIN_ARC * rays <= arc.size <= MAX_ARC * rays:
+        return None
+    found = shows[arc]
+    if found.sum() < 0.6 * arc.size:
+        return None
+    # Rays of the arc without a rise of their own take their neighbours'.
+    steps = np.arange(arc.size)
+    limit = np.interp(steps, steps[found], at[arc][found].astype(np.float64))
+    depth = (leaves[arc] - limit) * SPACING
+    if np.median(depth) < MIN_BAND:
+        return None
+    from scipy.ndimage import median_filter
+
+    return arc, median_filter(limit, size=5, mode="nearest"), depth
+
+
+def _row_quantiles(
+    values: NDArray[np.float32], where: NDArray[np.bool_], quantiles: tuple[float, ...]
+) -> tuple[NDArray[np.float64], ...]:
+    """Quantiles of each row's values where ``where`` holds (at least one per row),
+    taken from the sorted values (lower order statistic)."""
+    ordered = np.sort(np.where(where, values, np.inf), axis=1)
+    count = where.sum(axis=1)
+    rows = np.arange(values.shape[0])
+    return tuple(
+        ordered[rows, np.clip(np.floor(q * (count - 1)).astype(np.int64), 0, None)].astype(np.float64)
+        for q in quantiles
+    )
+
+
+def _longest_arc(flags: NDArray[np.bool_]) -> NDArray[np.int64] | None:
+    """Ray indices of the longest circular run of ``flags`` after a majority
+    vote of five neighbours (a lone ray neither makes nor breaks an arc)."""
+    votes = sum(np.roll(flags, shift).astype(np.int64) for shift in range(-2, 3))
+    held = votes >= 3
+    if not held.any() or held.all():
+        return None
+    start = int(np.argmin(held))
+    rolled = np.roll(held, -start)
+    # Runs of the rolled flags (it starts with a False, so none wraps round).
+    edges = np.diff(np.concatenate([[0], rolled.astype(np.int8), [0]]))
+    begins, ends = np.flatnonzero(edges == 1), np.flatnonzero(edges == -1)
+    longest = int(np.argmax(ends - begins))
+    return (np.arange(begins[longest], ends[longest]) + start) % flags.size
+
+
+def _smooth_arc(depth: NDArray[np.float64]) -> bool:
+    """Whether the shadow's width changes smoothly along the arc."""
+    width = float(np.median(depth))
+    return float(np.median(np.abs(np.diff(depth)))) <= max(1.0, ROUGH * width)
+
+
+def _away_from_light(
+    gray: NDArray[np.floating],
+    mask8: NDArray[np.uint8],
+    centre: tuple[float, float],
+    angles: NDArray[np.float64],
+) -> bool:
+    """Whether the arc lies on the side away from the rock's lit side.
+
+    The lit side is where the rock's brightness (above its darkest pixel) is
+    centred, off the rock's centre; a shadow falls the other way.
+    """
+    import cv2
+
+    darkest = cv2.minMaxLoc(gray.astype(np.float32), mask=mask8)[0]
+    weights = np.where(mask8 > 0, gray - darkest, 0.0).astype(np.float32)
+    moments = cv2.moments(weights)
+    if moments["m00"] <= 0:
+        return True
+    lit_y = moments["m01"] / moments["m00"] - centre[0]
+    lit_x = moments["m10"] / moments["m00"] - centre[1]
+    middle = math.atan2(float(np.sin(angles).mean()), float(np.cos(angles).mean()))
+    return math.cos(middle) * lit_x + math.sin(middle) * lit_y <= 0
+
+
+def _beyond(
+    shape: tuple[int, int],
+    centre: tuple[float, float],
+    angles: NDArray[np.float64],
+    limit: NDArray[np.float64],
+    reach: float,
+) -> NDArray[np.uint8]:
+    """The part of the plane beyond ``limit`` along an arc of rays (non-zero there).
+
+    The arc's ends reach half a ray's spacing past its first and last rays,
+    so that consecutive arcs would tile the plane.
+    """
+    import cv2
+
+    half = math.pi / RAYS
+    turns = np.concatenate([[angles[0] - half], angles, [angles[-1] + half]])
+    near = np.concatenate([[limit[0]], limit, [limit[-1]]])
+    # A shadow's far side, out of the region: the outline lies within ``reach``.
+    radii = np.concatenate([near, np.full(turns.size, reach + 2.0)])
+    turns = np.concatenate([turns, turns[::-1]])
+    points = np.column_stack([centre[1] + radii * np.cos(turns), centre[0] + radii * np.sin(turns)])
+    out = np.zeros(shape, np.uint8)
+    # Fixed point with 4 fractional bits: the cut runs between pixels.
+    cv2.fillPoly(out, [np.round(points * 16).astype(np.int32)], 1, lineType=cv2.LINE_8, shift=4)
+    return out

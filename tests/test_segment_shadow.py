@@ -1,0 +1,164 @@
+"""A cast shadow that joined a dark rock's outline, taken off (``rockscan.core.segment.shadow``).
+
+The photos here are drawn from the physics the module's docstring relies on,
+by a model of their own (not ``rockscan.render``, not ``scripts/scenes.py``):
+a dome of one albedo on a ground of another, lit by a directional light and
+the sky, its shadow cast by marching towards the light.
+"""
+
+from __future__ import annotations
+
+import math
+
+import cv2
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from rockscan.core.segment.shadow import shadow_off
+
+SHAPE = (220, 260)
+CENTRE = (110.0, 130.0)
+
+
+def lit_rock(
+    radius: float = 55.0,
+    rock_albedo: float = 0.25,
+    ground_albedo: float = 0.7,
+    azimuth: float = math.radians(200.0),
+    elevation: float = math.radians(35.0),
+    ambient: float = 0.3,
+    texture: float = 0.0,
+    blur: float = 1.0,
+    seed: int = 0,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """A photo (brightness in [0, 1]), the rock's mask and the cast shadow's mask."""
+    rng = np.random.default_rng(seed)
+    rr, cc = np.mgrid[: SHAPE[0], : SHAPE[1]].astype(np.float64)
+    dy, dx = rr - CENTRE[0], cc - CENTRE[1]
+    f = np.hypot(dy, dx) / radius
+    rock = f <= 1.0
+    height = np.where(rock, 0.6 * radius * np.sqrt(np.clip(1.0 - f**2, 0.0, None)), 0.0)
+    gy, gx = np.gradient(height)
+    norm = np.sqrt(gx**2 + gy**2 + 1.0)
+    light = (
+        math.cos(elevation) * math.sin(azimuth),
+        math.cos(elevation) * math.cos(azimuth),
+        math.sin(elevation),
+    )
+    lambert = np.clip((-gy * light[0] - gx * light[1] + light[2]) / norm, 0.0, None)
+    # Cast shadow: a ground pixel is shadowed when the dome rises above the
+    # ray from it towards the light.
+    lit = np.ones(SHAPE)
+    slope = math.tan(elevation)
+    for s in range(1, int(height.max() / slope) + 2):
+        oy, ox = round(s * light[0] / math.cos(elevation)), round(s * light[1] / math.cos(elevation))
+        shifted = np.zeros(SHAPE)
+        ys = slice(max(0, -oy), SHAPE[0] - max(0, oy))
+        xs = slice(max(0, -ox), SHAPE[1] - max(0, ox))
+        yt = slice(max(0, oy), SHAPE[0] - max(0, -oy))
+        xt = slice(max(0, ox), SHAPE[1] - max(0, -ox))
+        shifted[ys, xs] = height[yt, xt]
+        lit[(shifted - s * slope > height + 0.5)] = 0.0
+    shadow = (lit == 0.0) & ~rock
+    albedo = np.where(rock, rock_albedo * (1.0 + texture * rng.standard_normal(SHAPE)), ground_albedo)
+    radiance = albedo * (ambient + (1.0 - ambient) * lambert * lit)
+    radiance = cv2.GaussianBlur(radiance.astype(np.float32), (0, 0), blur)
+    photo = np.clip(radiance + 0.005 * rng.standard_normal(SHAPE), 0.0, 1.0)
+    return photo, rock, shadow
+
+
+def log_brightness(photo: np.ndarray) -> np.ndarray:
+    return np.log(photo + 0.04)
+
+
+def iou(a: np.ndarray, b: np.ndarray) -> float:
+    return float((a & b).sum() / (a | b).sum())
+
+
+def test_the_photos_cast_a_shadow_darker_than_half_way_to_the_rock():
+    # The premise: a threshold half-way between ground and rock takes the
+    # shadow in with the rock.
+    photo, rock, shadow = lit_rock()
+    ground = np.median(photo[~rock & ~shadow])
+    half = 0.5 * (ground + np.median(photo[rock]))
+    assert shadow.sum() > 0.1 * rock.sum()
+    assert np.median(photo[shadow]) < half
+
+
+@pytest.mark.parametrize("azimuth", [0.0, 100.0, 200.0, 300.0])
+def test_a_shadow_that_joined_a_dark_rock_is_taken_off(azimuth):
+    photo, rock, shadow = lit_rock(azimuth=math.radians(azimuth))
+    joined = rock | shadow
+    assert iou(joined, rock) < 0.9
+    kept = shadow_off(log_brightness(photo), joined)
+    assert not (kept & ~joined).any()
+    assert iou(kept, rock) > 0.95, iou(kept, rock)
+
+
+def test_a_textured_dark_rock_loses_its_shadow_too():
+    photo, rock, shadow = lit_rock(texture=0.1, seed=3)
+    kept = shadow_off(log_brightness(photo), rock | shadow)
+    assert iou(kept, rock) > 0.95
+
+
+def test_a_light_rocks_mask_is_left_alone():
+    # Beside a light rock the shadow is darker than the ground, never rock:
+    # whatever the mask, there is nothing to take off.
+    photo, rock, shadow = lit_rock(rock_albedo=0.9, ground_albedo=0.3)
+    joined = rock | shadow
+    assert shadow_off(log_brightness(photo), joined) is joined
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_a_rock_outlined_right_is_left_alone(seed):
+    # Its own shaded side (a dark rim) and its texture are no shadow.
+    photo, rock, _ = lit_rock(texture=0.15, seed=seed, azimuth=math.radians(90.0 * seed))
+    assert shadow_off(log_brightness(photo), rock) is rock
+
+
+@pytest.mark.parametrize(("arms", "depth", "blur"), [(6, 0.3, 1.5), (5, 0.45, 2.5), (8, 0.6, 3.5)])
+def test_a_blurred_stars_arms_are_no_shadow(arms, depth, blur):
+    # A ray along an arm runs through pixels half rock, half ground under
+    # the blur: a band between their levels, like a shadow's, but no wider
+    # than the blur, and cutting it would notch the arm.
+    rr, cc = np.mgrid[: SHAPE[0], : SHAPE[1]]
+    angle = np.arctan2(rr - CENTRE[0], cc - CENTRE[1])
+    star = np.hypot(rr - CENTRE[0], cc - CENTRE[1]) <= 60.0 * (1 + depth * np.cos(arms * angle))
+    photo = cv2.GaussianBlur(np.where(star, 0.1, 0.6).astype(np.float32), (0, 0), blur)
+    assert shadow_off(log_brightness(photo), star) is star
+
+
+def test_small_and_empty_masks_are_left_alone():
+    photo, _, _ = lit_rock()
+    empty = np.zeros(SHAPE, bool)
+    assert shadow_off(log_brightness(photo), empty) is empty
+    dot = np.zeros(SHAPE, bool)
+    dot[100:105, 100:105] = True
+    assert shadow_off(log_brightness(photo), dot) is dot
+
+
+@settings(max_examples=25, deadline=None)
+@given(
+    azimuth=st.floats(0.0, 360.0),
+    elevation=st.floats(20.0, 60.0),
+    radius=st.floats(30.0, 60.0),
+    texture=st.floats(0.0, 0.15),
+    seed=st.integers(0, 2**16),
+)
+def test_the_result_is_one_piece_of_the_mask_that_keeps_the_rock(azimuth, elevation, radius, texture, seed):
+    photo, rock, shadow = lit_rock(
+        radius=radius,
+        azimuth=math.radians(azimuth),
+        elevation=math.radians(elevation),
+        texture=texture,
+        seed=seed,
+    )
+    joined = rock | shadow
+    kept = shadow_off(log_brightness(photo), joined)
+    assert not (kept & ~joined).any()
+    count, _ = cv2.connectedComponents(kept.astype(np.uint8), connectivity=4)
+    assert count == 2
+    # Never worse than the mask it was given by more than a sliver.
+    assert iou(kept, rock) >= iou(joined, rock) - 0.02
