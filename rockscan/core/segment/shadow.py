@@ -220,8 +220,10 @@ def _inner_edges(
     # The band beyond the rise, on the rays still in question only (the
     # quantiles sort every sample of a ray).
     ask = rows[shows]
-    band = (index >= (at[ask] + half)[:, None]) & (index < edge[ask][:, None])
-    low, middle, high = _row_quantiles(profiles[ask], band, (0.25, 0.5, 0.75))
+    # Only samples inside the outline can be in a band.
+    span = int(edge[ask].max())
+    band = (index[:span] >= (at[ask] + half)[:, None]) & (index[:span] < edge[ask][:, None])
+    low, middle, high = _row_quantiles(profiles[ask, :span], band, (0.25, 0.5, 0.75))
     shows[ask] = (
         (high - low <= FLAT * step) & (middle >= valley[ask] + RISE * step) & (middle <= ground - 0.25 * step)
     )
@@ -259,8 +261,8 @@ def _row_quantiles(
 def _longest_arc(flags: NDArray[np.bool_]) -> NDArray[np.int64] | None:
     """Ray indices of the longest circular run of ``flags`` after a majority
     vote of five neighbours (a lone ray neither makes nor breaks an arc)."""
-    votes = sum(np.roll(flags, shift).astype(np.int64) for shift in range(-2, 3))
-    held = votes >= 3
+    wrapped = np.concatenate([flags[-2:], flags, flags[:2]]).astype(np.int8)
+    held = np.convolve(wrapped, np.ones(5, np.int8), mode="valid") >= 3
     if not held.any() or held.all():
         return None
     start = int(np.argmin(held))
