@@ -221,8 +221,6 @@ def _shadow_off(found: Segmentation, pixels: NDArray[np.generic]) -> Segmentatio
     The shadow is judged on the photo's log brightness around the rock,
     brought to the working grid the rock was outlined on.
     """
-    import cv2
-
     # A light rock's shadow is darker than the ground: it never joins the rock.
     if found.channel == "luminance" and found.polarity == "light":
         return found
@@ -234,25 +232,36 @@ def _shadow_off(found: Segmentation, pixels: NDArray[np.generic]) -> Segmentatio
     o0, o1 = rock.origin_rowcol
     r0, r1 = max(0, o0 - pad), min(rows, o0 + h + pad)
     c0, c1 = max(0, o1 - pad), min(cols, o1 + w + pad)
-    sr, sc = found.scale_rowcol
+    gray = _working_gray(pixels, (r0, r1, c0, c1), found.scale_rowcol)
+    mask = np.zeros(gray.shape, bool)
+    mask[o0 - r0 : o0 - r0 + h, o1 - c0 : o1 - c0 + w] = rock.mask
+    kept = shadow_off(np.log(gray + np.float32(_LOG_FLOOR)), mask)
+    if kept is mask:
+        return found
+    return _main_cut(found, kept[o0 - r0 : o0 - r0 + h, o1 - c0 : o1 - c0 + w])
+
+
+def _working_gray(
+    pixels: NDArray[np.generic], window: tuple[int, int, int, int], scale_rowcol: tuple[float, float]
+) -> NDArray[np.float32]:
+    """Luminance in [0, 1] of a window (rows r0:r1, cols c0:c1) of the working
+    image, from the photo's pixels under it, reduced as the working image was
+    (exact halvings, then one resize) before the conversion to gray."""
+    import cv2
+
+    r0, r1, c0, c1 = window
+    sr, sc = scale_rowcol
     photo = np.asarray(pixels)
     if photo.ndim == 3 and photo.shape[2] == 1:
         photo = photo[..., 0]
     p0, p1 = math.floor(r0 * sr), min(photo.shape[0], max(math.floor(r0 * sr) + 1, round(r1 * sr)))
     q0, q1 = math.floor(c0 * sc), min(photo.shape[1], max(math.floor(c0 * sc) + 1, round(c1 * sc)))
     size = (c1 - c0, r1 - r0)
-    # Reduced as the working image was (exact halvings, then one resize),
-    # before the gray conversion, which then has fewer pixels to convert.
-    window, _ = _at_scale(_pyramid(photo[p0:p1, q0:q1], max(1, min(size))), max(sr, sc))
-    gray = _unit(window[..., :3].astype(np.float32) @ _LUMA if window.ndim == 3 else window, photo.dtype)
+    reduced, _ = _at_scale(_pyramid(photo[p0:p1, q0:q1], max(1, min(size))), max(sr, sc))
+    gray = _unit(reduced[..., :3].astype(np.float32) @ _LUMA if reduced.ndim == 3 else reduced, photo.dtype)
     if gray.shape != size[::-1]:
         gray = cv2.resize(gray, size, interpolation=cv2.INTER_LINEAR)
-    mask = np.zeros((r1 - r0, c1 - c0), bool)
-    mask[o0 - r0 : o0 - r0 + h, o1 - c0 : o1 - c0 + w] = rock.mask
-    kept = shadow_off(np.log(gray + np.float32(_LOG_FLOOR)), mask)
-    if kept is mask:
-        return found
-    return _main_cut(found, kept[o0 - r0 : o0 - r0 + h, o1 - c0 : o1 - c0 + w])
+    return gray
 
 
 #: Added to brightness in [0, 1] before its logarithm (ten levels of eight

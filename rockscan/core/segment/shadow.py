@@ -34,6 +34,7 @@ corner, along a star's arm) would notch it.
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import NDArray
@@ -62,6 +63,11 @@ FLAT = 0.3
 #: Shortest and longest arc of the outline a shadow lies along, as shares
 #: of the rays.
 MIN_ARC, MAX_ARC = 0.08, 0.8
+#: Least share of an arc's rays that show a rise of their own.
+SHOWN = 0.6
+#: How far, as a share of the step, the valley before a rise may lie above
+#: the rock's level, and the band beyond it must lie below the ground's.
+MARGIN = 0.25
 #: Largest median change of the shadow's width from one ray to the next, as
 #: a share of its median width (at least a pixel).
 ROUGH = 0.15
@@ -177,6 +183,67 @@ def _spread(values: NDArray[np.floating], median: float) -> float:
     return 1.4826 * float(np.median(np.abs(values - median)))
 
 
+@dataclass(frozen=True)
+class _Rises:
+    """Along each ray: the first sample outside the region (``leaves``), the
+    steepest rise inside it (``at``, ``height``), the lowest level just
+    before the rise (``valley``), and where the outline's own blurred edge
+    begins (``edge``)."""
+
+    leaves: NDArray[np.int64]
+    at: NDArray[np.int64]
+    height: NDArray[np.float32]
+    valley: NDArray[np.float32]
+    edge: NDArray[np.int64]
+    room: NDArray[np.bool_]
+
+
+def _rises(profiles: NDArray[np.float32], inside: NDArray[np.bool_]) -> _Rises:
+    """The steepest rise of each ray's profile, far enough inside the outline
+    to leave room for a band of ``MIN_BAND`` pixels before its blurred edge."""
+    rays, length = profiles.shape
+    half = max(1, round(HALF_RISE / SPACING))
+    # First sample outside the region along each ray; a ray that starts
+    # outside (a concave region's centre) shows nothing.
+    leaves = np.argmax(~inside, axis=1)
+    index = np.arange(length)
+    rise = np.full(profiles.shape, -np.inf, np.float32)
+    rise[:, half : length - half] = profiles[:, 2 * half :] - profiles[:, : length - 2 * half]
+    lo = np.maximum((0.4 * leaves).astype(np.int64), half)
+    # The outline's own edge is blurred over half a rise's width inside it.
+    edge = leaves - 1 - half
+    hi = edge - half - round(MIN_BAND / SPACING)
+    rise = np.where((index >= lo[:, None]) & (index < hi[:, None]), rise, -np.inf)
+    at = np.argmax(rise, axis=1)
+    before = (index >= (at - 3 * half)[:, None]) & (index <= at[:, None])
+    return _Rises(
+        leaves=leaves,
+        at=at,
+        height=rise[np.arange(rays), at],
+        valley=np.where(before, profiles, np.inf).min(axis=1),
+        edge=edge,
+        room=(~inside).any(axis=1) & (leaves >= 4) & (hi - lo > 2),
+    )
+
+
+def _flat_bands(
+    profiles: NDArray[np.float32], rises: _Rises, rays: NDArray[np.int64], ground: float, step: float
+) -> NDArray[np.bool_]:
+    """Whether, on each of ``rays``, the band from the rise to the outline's
+    edge is flat, well above the valley and darker than the ground."""
+    half = max(1, round(HALF_RISE / SPACING))
+    # Only samples inside the outline can be in a band.
+    span = int(rises.edge[rays].max())
+    index = np.arange(span)
+    band = (index >= (rises.at[rays] + half)[:, None]) & (index < rises.edge[rays][:, None])
+    low, middle, high = _row_quantiles(profiles[rays, :span], band, (0.25, 0.5, 0.75))
+    return (
+        (high - low <= FLAT * step)
+        & (middle >= rises.valley[rays] + RISE * step)
+        & (middle <= ground - MARGIN * step)
+    )
+
+
 def _inner_edges(
     profiles: NDArray[np.float32],
     inside: NDArray[np.bool_],
@@ -187,56 +254,30 @@ def _inner_edges(
 ) -> tuple[NDArray[np.int64], NDArray[np.float64], NDArray[np.float64]] | None:
     """The arc of rays that show a shadow, where on each the rock ends
     (sample index) and how wide the shadow is there (pixels); None without one."""
-    rays, length = profiles.shape
-    half = max(1, round(HALF_RISE / SPACING))
-    # First sample outside the region along each ray; a ray that starts
-    # outside (a concave region's centre) shows nothing.
-    leaves = np.argmax(~inside, axis=1)
-    usable = (~inside).any(axis=1) & (leaves >= 4)
-    index = np.arange(length)
-    rise = np.full(profiles.shape, -np.inf, np.float32)
-    rise[:, half : length - half] = profiles[:, 2 * half :] - profiles[:, : length - 2 * half]
-    lo = np.maximum((0.4 * leaves).astype(np.int64), half)
-    # The band must be flat for MIN_BAND pixels between the rise and the
-    # outline's own blurred edge (half a rise's width inside the outline).
-    edge = leaves - 1 - half
-    hi = edge - half - round(MIN_BAND / SPACING)
-    window = (index >= lo[:, None]) & (index < hi[:, None])
-    rise = np.where(window, rise, -np.inf)
-    at = np.argmax(rise, axis=1)
-    height = rise[np.arange(rays), at]
-    rows = np.arange(rays)
-    before = (index >= (at - 3 * half)[:, None]) & (index <= at[:, None])
-    valley = np.where(before, profiles, np.inf).min(axis=1)
+    rays = profiles.shape[0]
+    rises = _rises(profiles, inside)
     shows = (
-        usable
-        & (hi - lo > 2)
-        & (height >= RISE * step)
-        & (height >= NOISE * noise)
-        & (valley <= rock + 0.25 * step)
+        rises.room
+        & (rises.height >= RISE * step)
+        & (rises.height >= NOISE * noise)
+        & (rises.valley <= rock + MARGIN * step)
     )
-    if shows.sum() < MIN_ARC * rays * 0.6:
+    if shows.sum() < SHOWN * MIN_ARC * rays:
         return None
-    # The band beyond the rise, on the rays still in question only (the
+    # The bands are looked at on the rays still in question only (their
     # quantiles sort every sample of a ray).
-    ask = rows[shows]
-    # Only samples inside the outline can be in a band.
-    span = int(edge[ask].max())
-    band = (index[:span] >= (at[ask] + half)[:, None]) & (index[:span] < edge[ask][:, None])
-    low, middle, high = _row_quantiles(profiles[ask, :span], band, (0.25, 0.5, 0.75))
-    shows[ask] = (
-        (high - low <= FLAT * step) & (middle >= valley[ask] + RISE * step) & (middle <= ground - 0.25 * step)
-    )
+    asked = np.flatnonzero(shows)
+    shows[asked] = _flat_bands(profiles, rises, asked, ground, step)
     arc = _longest_arc(shows)
     if arc is None or not MIN_ARC * rays <= arc.size <= MAX_ARC * rays:
         return None
     found = shows[arc]
-    if found.sum() < 0.6 * arc.size:
+    if found.sum() < SHOWN * arc.size:
         return None
     # Rays of the arc without a rise of their own take their neighbours'.
     steps = np.arange(arc.size)
-    limit = np.interp(steps, steps[found], at[arc][found].astype(np.float64))
-    depth = (leaves[arc] - limit) * SPACING
+    limit = np.interp(steps, steps[found], rises.at[arc][found].astype(np.float64))
+    depth = (rises.leaves[arc] - limit) * SPACING
     if np.median(depth) < MIN_BAND:
         return None
     from scipy.ndimage import median_filter
