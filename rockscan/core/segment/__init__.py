@@ -116,11 +116,17 @@ from rockscan.core.segment.channels import _LUMA, _at_scale, _channels, _check_p
 from rockscan.core.segment.choose import choose
 from rockscan.core.segment.detect import _detect, _Detection, _luminance_polarity
 from rockscan.core.segment.pebbles import pebbles_off
-from rockscan.core.segment.shadow import RING as SHADOW_RING
-from rockscan.core.segment.shadow import RING_PIXELS as SHADOW_RING_PIXELS
 from rockscan.core.segment.shadow import shadow_off
 from rockscan.core.segment.split import largest_part, opened, split_blobs, split_necks, territories
-from rockscan.core.segment.trace import _disk, _fill_holes, _from_alpha, _outline_rock, _scored
+from rockscan.core.segment.trace import (
+    RING,
+    RING_PIXELS,
+    _disk,
+    _fill_holes,
+    _from_alpha,
+    _outline_rock,
+    _scored,
+)
 from rockscan.core.segment.types import CONFIDENT_SCORE, RockMask, Segmentation, SegmentConfig
 
 __all__ = ["CONFIDENT_SCORE", "RockMask", "SegmentConfig", "Segmentation", "segment", "to_gray"]
@@ -227,7 +233,8 @@ def _shadow_off(found: Segmentation, pixels: NDArray[np.generic]) -> Segmentatio
     rock = found.rocks[0]
     h, w = rock.mask.shape
     radius = math.sqrt(max(rock.area, 1) / math.pi)
-    pad = math.ceil(max(SHADOW_RING_PIXELS[1], SHADOW_RING[1] * radius)) + 2
+    # The window holds the ring the ground's level is read from.
+    pad = math.ceil(max(RING_PIXELS[1], RING[1] * radius)) + 2
     rows, cols = found.labels.shape
     o0, o1 = rock.origin_rowcol
     r0, r1 = max(0, o0 - pad), min(rows, o0 + h + pad)

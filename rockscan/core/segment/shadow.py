@@ -40,7 +40,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from rockscan.core.segment.split import largest_part
-from rockscan.core.segment.trace import _fill_holes, _sample_at
+from rockscan.core.segment.trace import _core_and_ring, _fill_holes, _sample_at
 
 __all__ = ["shadow_off"]
 
@@ -75,12 +75,6 @@ ROUGH = 0.15
 LONGER = 1.05
 #: Smallest region, in pixels, that is looked at.
 MIN_AREA = 50
-#: Where the rock's and the ground's levels are read: the core lies over
-#: ``CORE`` equivalent radii inside the outline, the ring between ``RING``
-#: equivalent radii outside it (at least the pixels in ``RING_PIXELS``).
-CORE = 0.15
-RING = (0.12, 0.35)
-RING_PIXELS = (3.0, 6.0)
 
 
 def shadow_off(gray: NDArray[np.floating], mask: NDArray[np.bool_]) -> NDArray[np.bool_]:
@@ -162,13 +156,8 @@ def _levels(
 ) -> tuple[float, float, float] | None:
     """The rock's level (median of its core), the ground's (median of a ring
     round it) and the ground's robust spread; None without enough of either."""
-    import cv2
 
-    inside = cv2.distanceTransform(mask8, cv2.DIST_L2, 3)
-    outside = cv2.distanceTransform(1 - mask8, cv2.DIST_L2, 3)
-    core = inside > CORE * radius
-    near, far = max(RING_PIXELS[0], RING[0] * radius), max(RING_PIXELS[1], RING[1] * radius)
-    ring = (outside > near) & (outside <= far)
+    core, ring = _core_and_ring(mask8, radius)
     if core.sum() < 8 or ring.sum() < 8:
         return None
     # Medians of a few thousand evenly spaced pixels: the levels need no more.

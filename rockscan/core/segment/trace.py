@@ -77,7 +77,6 @@ def _scored(
     as a level from the ground's (0, the median of a ring around the
     outline) to the rock's (1, the median inside).
     """
-    import cv2
 
     rows, cols = work.shape[:2]
     o0, o1 = rock.origin_rowcol
@@ -93,10 +92,8 @@ def _scored(
     lighting = _window_of(detection.lighting, up, (r0, r1, c0, c1))
     flat = _flatten(values, lighting, detection.channel.multiplicative)
     mask8 = mask.astype(np.uint8)
-    inside = cv2.distanceTransform(mask8, cv2.DIST_L2, 3) > max(1.0, 0.15 * radius)
+    inside, ring = _core_and_ring(mask8, radius)
     core = flat[inside] if inside.sum() >= 4 else flat[mask]
-    outside = cv2.distanceTransform(1 - mask8, cv2.DIST_L2, 3)
-    ring = (outside > max(3.0, 0.12 * radius)) & (outside <= max(6.0, 0.35 * radius))
     ground = float(np.median(flat[ring])) if ring.sum() >= 8 else 0.0
     step = float(np.median(core)) - ground
     if not math.isfinite(step) or abs(step) < 1e-6:
@@ -107,6 +104,25 @@ def _scored(
     return dataclasses.replace(
         rock, score=outline_score(evidence), evidence=tuple(float(v) for v in evidence.as_array())
     )
+
+
+#: An outline's core lies over this share of the rock's equivalent radius
+#: inside it (at least a pixel); its ring between these shares outside it
+#: (at least the pixels in ``RING_PIXELS``): where a rock's and its ground's
+#: levels are read once the rock is outlined.
+CORE = 0.15
+RING = (0.12, 0.35)
+RING_PIXELS = (3.0, 6.0)
+
+
+def _core_and_ring(mask8: NDArray[np.uint8], radius: float) -> tuple[NDArray[np.bool_], NDArray[np.bool_]]:
+    """The core of an outlined rock and the ring of ground around it (``CORE``, ``RING``)."""
+    import cv2
+
+    inside = cv2.distanceTransform(mask8, cv2.DIST_L2, 3)
+    outside = cv2.distanceTransform(1 - mask8, cv2.DIST_L2, 3)
+    near, far = max(RING_PIXELS[0], RING[0] * radius), max(RING_PIXELS[1], RING[1] * radius)
+    return inside > max(1.0, CORE * radius), (outside > near) & (outside <= far)
 
 
 def _threshold_rock(
