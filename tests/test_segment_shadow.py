@@ -16,7 +16,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from rockscan.core.segment.shadow import shadow_off
+from rockscan.core.segment.shadow import shadow_left_out, shadow_off
 
 SHAPE = (220, 260)
 CENTRE = (110.0, 130.0)
@@ -32,8 +32,13 @@ def lit_rock(
     texture: float = 0.0,
     blur: float = 1.0,
     seed: int = 0,
+    ground_texture: float = 0.0,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """A photo (brightness in [0, 1]), the rock's mask and the cast shadow's mask."""
+    """A photo (brightness in [0, 1]), the rock's mask and the cast shadow's mask.
+
+    ``texture`` and ``ground_texture`` vary the rock's and the ground's albedo
+    (relative standard deviation; the ground's is grain a few pixels wide).
+    """
     rng = np.random.default_rng(seed)
     rr, cc = np.mgrid[: SHAPE[0], : SHAPE[1]].astype(np.float64)
     dy, dx = rr - CENTRE[0], cc - CENTRE[1]
@@ -62,7 +67,13 @@ def lit_rock(
         shifted[ys, xs] = height[yt, xt]
         lit[(shifted - s * slope > height + 0.5)] = 0.0
     shadow = (lit == 0.0) & ~rock
-    albedo = np.where(rock, rock_albedo * (1.0 + texture * rng.standard_normal(SHAPE)), ground_albedo)
+    grain = cv2.GaussianBlur(rng.standard_normal(SHAPE).astype(np.float32), (0, 0), 1.5)
+    grain /= max(float(grain.std()), 1e-9)
+    albedo = np.where(
+        rock,
+        rock_albedo * (1.0 + texture * rng.standard_normal(SHAPE)),
+        ground_albedo * np.exp(ground_texture * grain),
+    )
     radiance = albedo * (ambient + (1.0 - ambient) * lambert * lit)
     radiance = cv2.GaussianBlur(radiance.astype(np.float32), (0, 0), blur)
     photo = np.clip(radiance + 0.005 * rng.standard_normal(SHAPE), 0.0, 1.0)
@@ -162,3 +173,57 @@ def test_the_result_is_one_piece_of_the_mask_that_keeps_the_rock(azimuth, elevat
     assert count == 2
     # Never worse than the mask it was given by more than a sliver.
     assert iou(kept, rock) >= iou(joined, rock) - 0.02
+
+
+# A rock lighter than its own shadow (a mid-toned rock: the shadow is the
+# ground in sky light alone) shows no rise from rim to shadow; the inner
+# outline another cue drew is the rock.
+
+
+@pytest.mark.parametrize("azimuth", [0.0, 100.0, 200.0, 300.0])
+@pytest.mark.parametrize("rock_albedo", [0.4, 0.5])
+def test_an_inner_outline_that_leaves_out_the_shadow_is_the_rock(azimuth, rock_albedo):
+    photo, rock, shadow = lit_rock(
+        rock_albedo=rock_albedo,
+        texture=0.1,
+        azimuth=math.radians(azimuth),
+        seed=int(azimuth),
+        ground_texture=0.08,
+    )
+    gray = log_brightness(photo)
+    lit_half = rock & (photo > np.median(photo[rock]))
+    assert shadow_left_out(gray, rock | shadow, [rock]) == 0
+    # The most probable inner outline that qualifies wins; others are passed over.
+    assert shadow_left_out(gray, rock | shadow, [lit_half, rock]) == 1
+
+
+@pytest.mark.parametrize("azimuth", [0.0, 100.0, 200.0, 300.0])
+@pytest.mark.parametrize("texture", [0.05, 0.15])
+def test_a_rocks_own_shaded_side_is_no_shadow(azimuth, texture):
+    # Left out by an outline of the lit half, the shaded half keeps the
+    # rock's shading and texture: it is not darkened ground.
+    photo, rock, _ = lit_rock(
+        rock_albedo=0.4, texture=texture, azimuth=math.radians(azimuth), seed=7, ground_texture=0.08
+    )
+    lit_half = rock & (photo > np.median(photo[rock]))
+    assert shadow_left_out(log_brightness(photo), rock, [lit_half]) is None
+
+
+def test_a_dark_rocks_shadow_is_left_to_the_rays():
+    # Beside a dark rock the shadow is lighter than the rock's core: the
+    # rule does not apply (``shadow_off`` sees the rise instead).
+    photo, rock, shadow = lit_rock(rock_albedo=0.2, texture=0.1, ground_texture=0.08)
+    assert shadow_left_out(log_brightness(photo), rock | shadow, [rock]) is None
+
+
+def test_a_light_rock_and_outlines_that_are_not_inside_are_passed_over():
+    photo, rock, shadow = lit_rock(rock_albedo=0.9, ground_albedo=0.3, ground_texture=0.08)
+    gray = log_brightness(photo)
+    assert shadow_left_out(gray, rock | shadow, [rock]) is None
+    photo, rock, shadow = lit_rock(rock_albedo=0.45, texture=0.1, ground_texture=0.08)
+    gray = log_brightness(photo)
+    # Reaching out of the outline, or too small a part of it, or the outline itself.
+    beyond = np.roll(rock, 40, axis=1)
+    core = rock & (np.hypot(*(np.mgrid[: SHAPE[0], : SHAPE[1]] - np.array(CENTRE)[:, None, None])) < 25)
+    assert shadow_left_out(gray, rock | shadow, [beyond, core, rock | shadow]) is None
+    assert shadow_left_out(gray, rock | shadow, []) is None

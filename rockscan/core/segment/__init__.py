@@ -80,6 +80,9 @@ Steps (see :func:`segment`):
 7. **Candidates and choice** (photos of one rock): other cues outline the
    main rock too, and a model fitted on the segmentation benchmark's
    development part chooses among them (``rockscan.core.segment.choose``).
+   Unless the choice is sure (probability ``FAST_PROBABILITY``), a
+   candidate inside the chosen outline replaces it when the part it leaves
+   out is a cast shadow darker than the rock (``shadow.shadow_left_out``).
 8. **Pebbles off.** Round pieces that hang off the chosen outline at a neck
    (touching pebbles, which join every cue's region) are cut off along
    their contacts (``rockscan.core.segment.pebbles``); lobes all round it are
@@ -113,10 +116,10 @@ from numpy.typing import NDArray
 from rockscan.core._threads import one_blas_thread
 from rockscan.core.errors import NoRockFoundError, ParameterError
 from rockscan.core.segment.channels import _LUMA, _at_scale, _channels, _check_pixels, _pyramid, _unit
-from rockscan.core.segment.choose import choose
+from rockscan.core.segment.choose import choose_ranked
 from rockscan.core.segment.detect import _detect, _Detection, _luminance_polarity
 from rockscan.core.segment.pebbles import pebbles_off
-from rockscan.core.segment.shadow import shadow_off
+from rockscan.core.segment.shadow import shadow_left_out, shadow_off
 from rockscan.core.segment.split import largest_part, opened, split_blobs, split_necks, territories
 from rockscan.core.segment.trace import (
     RING,
@@ -200,12 +203,45 @@ def _main_rock(pixels: NDArray[np.generic], config: SegmentConfig, *, all_rocks:
     # The refinements (GrabCut) cost most: they are made only when the choice
     # among the detected candidates is not already sure.
     if len(candidates) >= 2:
-        index, probability = choose(*zip(*candidates, strict=True))
-        if probability >= FAST_PROBABILITY:
-            return _main_scored(candidates[index][0], probability)
+        index, probabilities = choose_ranked(*zip(*candidates, strict=True))
+        if probabilities.max() >= FAST_PROBABILITY:
+            return _main_scored(candidates[index][0], probabilities)
     candidates = candidates + pool.refined()
-    index, probability = choose(*zip(*candidates, strict=True))
-    return _main_scored(candidates[index][0], probability)
+    index, probabilities = choose_ranked(*zip(*candidates, strict=True))
+    return _main_scored(_without_shadow(candidates, index, probabilities, pixels), probabilities)
+
+
+def _without_shadow(
+    candidates: list[tuple[Segmentation, float, str]],
+    index: int,
+    probabilities: NDArray[np.float64],
+    pixels: NDArray[np.generic],
+) -> Segmentation:
+    """The chosen candidate, or the most probable candidate inside it that
+    leaves out a cast shadow it took in (``shadow.shadow_left_out``).
+
+    The rock is the same object, less its shadow: it keeps the chosen
+    candidate's probability as its score.
+    """
+    found = candidates[index][0]
+    # A choice already sure of its outline is not second-guessed.
+    if probabilities.max() >= FAST_PROBABILITY:
+        return found
+    window, gray = _rock_window(found, pixels)
+    outer = _placed(found.rocks[0], window, found.scale_rowcol)
+    inners, which = [], []
+    for k in np.argsort(-probabilities, kind="stable"):
+        if k == index:
+            continue
+        other = candidates[k][0]
+        inner = _placed(other.rocks[0], window, found.scale_rowcol, other.scale_rowcol)
+        if inner is not None:
+            inners.append(inner)
+            which.append(int(k))
+    if outer is None or not inners:
+        return found
+    chosen = shadow_left_out(gray, outer, inners)
+    return found if chosen is None else candidates[which[chosen]][0]
 
 
 def _pebbles_off(found: Segmentation) -> Segmentation:
@@ -231,21 +267,68 @@ def _shadow_off(found: Segmentation, pixels: NDArray[np.generic]) -> Segmentatio
     if found.channel == "luminance" and found.polarity == "light":
         return found
     rock = found.rocks[0]
+    window, gray = _rock_window(found, pixels)
+    mask = _placed(rock, window, found.scale_rowcol)
+    kept = shadow_off(gray, mask)
+    if kept is mask:
+        return found
+    (r0, _, c0, _), (o0, o1), (h, w) = window, rock.origin_rowcol, rock.mask.shape
+    return _main_cut(found, kept[o0 - r0 : o0 - r0 + h, o1 - c0 : o1 - c0 + w])
+
+
+def _rock_window(
+    found: Segmentation, pixels: NDArray[np.generic]
+) -> tuple[tuple[int, int, int, int], NDArray[np.float32]]:
+    """The window of the working grid around the main rock (rows r0:r1, cols
+    c0:c1) with the ring its ground's level is read from, and the photo's log
+    brightness on it."""
+    rock = found.rocks[0]
     h, w = rock.mask.shape
     radius = math.sqrt(max(rock.area, 1) / math.pi)
-    # The window holds the ring the ground's level is read from.
     pad = math.ceil(max(RING_PIXELS[1], RING[1] * radius)) + 2
     rows, cols = found.labels.shape
     o0, o1 = rock.origin_rowcol
-    r0, r1 = max(0, o0 - pad), min(rows, o0 + h + pad)
-    c0, c1 = max(0, o1 - pad), min(cols, o1 + w + pad)
-    gray = _working_gray(pixels, (r0, r1, c0, c1), found.scale_rowcol)
-    mask = np.zeros(gray.shape, bool)
-    mask[o0 - r0 : o0 - r0 + h, o1 - c0 : o1 - c0 + w] = rock.mask
-    kept = shadow_off(np.log(gray + np.float32(_LOG_FLOOR)), mask)
-    if kept is mask:
-        return found
-    return _main_cut(found, kept[o0 - r0 : o0 - r0 + h, o1 - c0 : o1 - c0 + w])
+    window = (max(0, o0 - pad), min(rows, o0 + h + pad), max(0, o1 - pad), min(cols, o1 + w + pad))
+    gray = _working_gray(pixels, window, found.scale_rowcol)
+    return window, np.log(gray + np.float32(_LOG_FLOOR))
+
+
+def _placed(
+    rock: RockMask,
+    window: tuple[int, int, int, int],
+    scale_rowcol: tuple[float, float],
+    grid_scale_rowcol: tuple[float, float] | None = None,
+) -> NDArray[np.bool_] | None:
+    """A rock's mask on a window of a working grid (photo pixels per grid pixel
+    ``scale_rowcol``); None if it does not fit inside.
+
+    The rock may have been outlined on another grid (``grid_scale_rowcol``,
+    the same by default): each window pixel then takes the value under its
+    centre.
+    """
+    r0, r1, c0, c1 = window
+    (o0, o1), (h, w) = rock.origin_rowcol, rock.mask.shape
+    own = grid_scale_rowcol or scale_rowcol
+    # The rock's extent in window pixels (fractional when the grids differ).
+    top, left = o0 * own[0] / scale_rowcol[0], o1 * own[1] / scale_rowcol[1]
+    bottom, right = (o0 + h) * own[0] / scale_rowcol[0], (o1 + w) * own[1] / scale_rowcol[1]
+    if top < r0 - _FIT or left < c0 - _FIT or bottom > r1 + _FIT or right > c1 + _FIT:
+        return None
+    if own == scale_rowcol and o0 >= r0 and o1 >= c0 and o0 + h <= r1 and o1 + w <= c1:
+        mask = np.zeros((r1 - r0, c1 - c0), bool)
+        mask[o0 - r0 : o0 - r0 + h, o1 - c0 : o1 - c0 + w] = rock.mask
+        return mask
+    rows = np.floor((np.arange(r0, r1) + 0.5) * scale_rowcol[0] / own[0]).astype(np.int64) - o0
+    cols = np.floor((np.arange(c0, c1) + 0.5) * scale_rowcol[1] / own[1]).astype(np.int64) - o1
+    on_rows, on_cols = (rows >= 0) & (rows < h), (cols >= 0) & (cols < w)
+    mask = np.zeros((r1 - r0, c1 - c0), bool)
+    mask[np.ix_(on_rows, on_cols)] = rock.mask[np.ix_(rows[on_rows], cols[on_cols])]
+    return mask
+
+
+#: How far, in pixels of the window's grid, a rock outlined on another grid
+#: may reach past the window's edge and still be placed on it (rounding).
+_FIT = 1.0
 
 
 def _working_gray(
@@ -299,8 +382,9 @@ def _main_cut(found: Segmentation, kept: NDArray[np.bool_]) -> Segmentation:
 FAST_PROBABILITY = 0.9
 
 
-def _main_scored(found: Segmentation, score: float) -> Segmentation:
-    """The segmentation with its main rock's score set to ``score``.
+def _main_scored(found: Segmentation, probabilities: NDArray[np.float64]) -> Segmentation:
+    """The segmentation with its main rock's score set to the choice's
+    probability that its object is the rock (the candidates' largest).
 
     A main rock chosen among candidates is scored by the choice model's
     probability that its outline is right, which ranks right outlines above
@@ -309,7 +393,7 @@ def _main_scored(found: Segmentation, score: float) -> Segmentation:
     0.885 against 0.820 (IoU >= 0.9 against < 0.8). An outline the fast path
     takes is supported all round and keeps its outline score (>= ``FAST_SCORE``).
     """
-    main = dataclasses.replace(found.rocks[0], score=float(score))
+    main = dataclasses.replace(found.rocks[0], score=float(probabilities.max()))
     return dataclasses.replace(found, rocks=(main, *found.rocks[1:]))
 
 

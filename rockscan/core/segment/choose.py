@@ -45,7 +45,15 @@ from rockscan.core.segment import choice_model
 from rockscan.core.segment.pebbles import pebble_share
 from rockscan.core.segment.types import Segmentation
 
-__all__ = ["FEATURES", "MONOTONE", "choice_features", "choice_probabilities", "choose", "pebble_share"]
+__all__ = [
+    "FEATURES",
+    "MONOTONE",
+    "choice_features",
+    "choice_probabilities",
+    "choose",
+    "choose_ranked",
+    "pebble_share",
+]
 
 #: Where a candidate comes from: the detection's own threshold outlines
 #: ("detected", placed between pixels), then the other cues of
@@ -242,6 +250,17 @@ def choose(
     detection_scores: Sequence[float],
     sources: Sequence[str] | None = None,
 ) -> tuple[int, float]:
+    """Index of the candidate that outlines the rock, and the probability that it does
+    (:func:`choose_ranked`, which also gives every candidate's probability)."""
+    index, probabilities = choose_ranked(candidates, detection_scores, sources)
+    return index, float(probabilities.max())
+
+
+def choose_ranked(
+    candidates: Sequence[Segmentation],
+    detection_scores: Sequence[float],
+    sources: Sequence[str] | None = None,
+) -> tuple[int, NDArray[np.float64]]:
     """Index of the candidate that outlines the rock, and the probability that it does.
 
     The most probable candidate says which object the rock is. Of the
@@ -263,9 +282,10 @@ def choose(
     Returns
     -------
     index : int
-    probability : float
-        The choice model's probability that the chosen candidate's object is
-        the rock (``probabilities[best]``).
+    probabilities : (n,) ndarray of float64
+        The choice model's probability that each candidate outlines the rock;
+        the largest is the probability that the chosen candidate's object is
+        the rock.
     """
     sources = _sources(sources, len(candidates))
     ious = _mutual_ious(candidates)
@@ -281,7 +301,7 @@ def choose(
         math.log(max(candidates[k].rocks[0].score, 1e-12)) + _DETECTION_WEIGHT * features[k, column]
         for k in same
     ]
-    return int(same[int(np.argmax(support))]), float(probabilities[best])
+    return int(same[int(np.argmax(support))]), probabilities
 
 
 #: Intersection over union from which two candidates outline the same object.

@@ -29,6 +29,14 @@ scattered depths and on any side. Along the arc, everything beyond the rise
 goes, unless that would lengthen the outline (``LONGER``): a cut along a
 rock's edge shortens it, while rays that graze the outline (near a sharp
 corner, along a star's arm) would notch it.
+
+A rock lighter than its own shadow (mid-toned, or textured with light
+patches: the shadow is the ground in sky light alone) shows no rise from
+rim to shadow, and the rays find nothing. There another cue may have drawn
+the rock alone, inside the chosen outline: :func:`shadow_left_out` takes
+such an inner outline when the part it leaves out looks like darkened
+ground and not like rock (darker than the rock's core, no more varied than
+it, and on the side away from its light).
 """
 
 from __future__ import annotations
@@ -42,7 +50,7 @@ from numpy.typing import NDArray
 from rockscan.core.segment.split import largest_part
 from rockscan.core.segment.trace import _core_and_ring, _fill_holes, _sample_at
 
-__all__ = ["shadow_off"]
+__all__ = ["shadow_left_out", "shadow_off"]
 
 #: Rays cast from the rock's centre.
 RAYS = 256
@@ -75,6 +83,24 @@ ROUGH = 0.15
 LONGER = 1.05
 #: Smallest region, in pixels, that is looked at.
 MIN_AREA = 50
+#: Area of an outline inside the chosen one, as a share of the chosen's, for
+#: it to be the rock without a shadow the chosen one took in.
+INNER_SHARE = (0.4, 0.92)
+#: Least share of such an outline that lies inside the chosen one.
+INNER_INSIDE = 0.95
+#: Largest spread (interquartile range of the log brightness) of the part
+#: left out, as a multiple of the ground's: a shadow is the ground darkened.
+GROUND_LIKE = 2.0
+#: Smallest part left out, in pixels (after one pixel's erosion).
+MIN_LEFT = 20
+#: How much darker than the rock's core the part left out must be, as a
+#: share of the step from the rock's level to the ground's (sensor noise
+#: alone makes a rock's shaded side a little darker than its core).
+DARKER = 0.25
+#: Least share of the ground's brightness that a shadow keeps: it is lit by
+#: the sky. Darker than that, a part is the rock's own black (or the
+#: sensor's), whose spread says nothing.
+SKY = 0.2
 
 
 def shadow_off(gray: NDArray[np.floating], mask: NDArray[np.bool_]) -> NDArray[np.bool_]:
@@ -141,6 +167,83 @@ def shadow_off(gray: NDArray[np.floating], mask: NDArray[np.bool_]) -> NDArray[n
     if _perimeter(kept) > LONGER * _perimeter(mask):
         return mask
     return kept
+
+
+def shadow_left_out(
+    gray: NDArray[np.floating], outer: NDArray[np.bool_], inners: list[NDArray[np.bool_]]
+) -> int | None:
+    """Which of several outlines inside a chosen one leaves out a cast shadow that it took in.
+
+    When the rock is lighter than its shadow (a textured rock, a dark rock
+    in sky light), the ray test of :func:`shadow_off` sees no rise from rim
+    to shadow; but other cues may have outlined the rock alone. The part of
+    the chosen outline that such an inner outline leaves out is a shadow if
+    it is what the ground's shadow is and the rock is not:
+
+    * darker than the ground (the rock being darker than the ground too)
+      and than the rock's core, which the light reaches, by at least
+      ``DARKER`` of the rock's step to the ground; but keeping at least
+      ``SKY`` of the ground's brightness, as ground in sky light does;
+    * no more varied than the rock's core, and at most ``GROUND_LIKE``
+      times the ground's spread: darkened ground keeps the ground's texture,
+      a rock's own shaded side keeps the rock's shading and texture;
+    * on the side of the inner outline away from its lit side.
+
+    Parameters
+    ----------
+    gray : (rows, cols) ndarray of float
+        Log brightness of the photo around the rock, on the masks' grid,
+        with a margin of at least a third of the rock's radius.
+    outer : (rows, cols) ndarray of bool
+        The chosen outline's region.
+    inners : list of (rows, cols) ndarray of bool
+        Other outlines' regions, the most probable first.
+
+    Returns
+    -------
+    int or None
+        Index in ``inners`` of the first that is the rock without a shadow
+        ``outer`` took in; None if none is.
+    """
+    import cv2
+
+    outer8 = outer.astype(np.uint8)
+    area = cv2.countNonZero(outer8)
+    if area < MIN_AREA:
+        return None
+    _, ring = _core_and_ring(outer8, math.sqrt(area / math.pi))
+    if ring.sum() < 8:
+        return None
+    ground, ground_spread = _median_and_iqr(gray, ring)
+    for index, inner in enumerate(inners):
+        inner8 = inner.astype(np.uint8)
+        size = cv2.countNonZero(inner8)
+        if not INNER_SHARE[0] * area <= size <= INNER_SHARE[1] * area:
+            continue
+        if cv2.countNonZero(inner8 & outer8) < INNER_INSIDE * size:
+            continue
+        left = cv2.erode(outer8 & (1 - inner8), np.ones((3, 3), np.uint8)) > 0
+        core, _ = _core_and_ring(inner8, math.sqrt(size / math.pi))
+        if left.sum() < MIN_LEFT or core.sum() < 8:
+            continue
+        rock, rock_spread = _median_and_iqr(gray, core)
+        level, spread = _median_and_iqr(gray, left)
+        darker = level <= rock - DARKER * (ground - rock) and level >= ground + math.log(SKY)
+        if not (rock < ground and darker and spread <= min(rock_spread, GROUND_LIKE * ground_spread)):
+            continue
+        moments = cv2.moments(inner8, binaryImage=True)
+        centre = (moments["m01"] / size, moments["m10"] / size)
+        ys, xs = np.nonzero(left)
+        towards = np.array([math.atan2(ys.mean() - centre[0], xs.mean() - centre[1])])
+        if _away_from_light(gray, inner8, centre, towards):
+            return index
+    return None
+
+
+def _median_and_iqr(gray: NDArray[np.floating], where: NDArray[np.bool_]) -> tuple[float, float]:
+    """Median and interquartile range of ``gray`` where ``where`` holds (sampled evenly)."""
+    low, middle, high = np.percentile(gray.ravel()[_sample_at(where)], (25, 50, 75))
+    return float(middle), float(high - low)
 
 
 def _perimeter(mask: NDArray[np.bool_]) -> float:
