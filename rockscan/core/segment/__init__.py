@@ -303,8 +303,7 @@ def _placed(
     ``scale_rowcol``); None if it does not fit inside.
 
     The rock may have been outlined on another grid (``grid_scale_rowcol``,
-    the same by default): each window pixel then takes the value under its
-    centre.
+    the same by default): each window pixel takes the value under its centre.
     """
     r0, r1, c0, c1 = window
     (o0, o1), (h, w) = rock.origin_rowcol, rock.mask.shape
@@ -314,10 +313,6 @@ def _placed(
     bottom, right = (o0 + h) * own[0] / scale_rowcol[0], (o1 + w) * own[1] / scale_rowcol[1]
     if top < r0 - _FIT or left < c0 - _FIT or bottom > r1 + _FIT or right > c1 + _FIT:
         return None
-    if own == scale_rowcol and o0 >= r0 and o1 >= c0 and o0 + h <= r1 and o1 + w <= c1:
-        mask = np.zeros((r1 - r0, c1 - c0), bool)
-        mask[o0 - r0 : o0 - r0 + h, o1 - c0 : o1 - c0 + w] = rock.mask
-        return mask
     rows = np.floor((np.arange(r0, r1) + 0.5) * scale_rowcol[0] / own[0]).astype(np.int64) - o0
     cols = np.floor((np.arange(c0, c1) + 0.5) * scale_rowcol[1] / own[1]).astype(np.int64) - o1
     on_rows, on_cols = (rows >= 0) & (rows < h), (cols >= 0) & (cols < w)
