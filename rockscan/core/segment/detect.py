@@ -12,6 +12,7 @@ from numpy.typing import NDArray
 
 from rockscan.core.segment.channels import _Channel, _unit
 from rockscan.core.segment.split import label_image, rejoined, split_rocks
+from rockscan.core.segment.stats import robust_spread
 from rockscan.core.segment.types import RockMask, SegmentConfig
 
 
@@ -230,7 +231,7 @@ def _robust_z(
     # Every fourth value gives the same statistics at a quarter of the cost.
     values = values[::4] if values.size > 4000 else values
     median = float(np.median(values))
-    mad = float(np.median(np.abs(values - median))) * 1.4826
+    mad = robust_spread(values, median)
     if local:
         # Neighbours reaching into the frame's border (a crop) widen the MAD
         # of the whole band; the ground's own spread is that of most of its
@@ -249,7 +250,7 @@ def _stretch_spread(flat: NDArray[np.float32], ground: NDArray[np.bool_]) -> flo
             cell = (slice(r * rows // 8, (r + 1) * rows // 8), slice(c * cols // 8, (c + 1) * cols // 8))
             values = flat[cell][ground[cell]]
             if values.size >= 12:
-                spreads.append(1.4826 * float(np.median(np.abs(values - np.median(values)))))
+                spreads.append(robust_spread(values))
     return float(np.median(spreads)) if len(spreads) >= 4 else math.inf
 
 

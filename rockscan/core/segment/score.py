@@ -26,6 +26,8 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
+from rockscan.core.segment.stats import robust_spread
+
 __all__ = ["OutlineEvidence", "outline_evidence", "outline_score"]
 
 
@@ -148,7 +150,7 @@ def outline_evidence(
     ring = ring[pad:-pad, pad:-pad]
     values = level[ring] if ring.sum() >= 8 else level[~mask]
     if values.size >= 8:
-        noise = float(1.4826 * np.median(np.abs(values - np.median(values))))
+        noise = robust_spread(values)
     else:
         noise = 1.0
     contours, _ = cv2.findContours(m8, cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_SIMPLE)

@@ -48,6 +48,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from rockscan.core.segment.split import largest_part
+from rockscan.core.segment.stats import robust_spread
 from rockscan.core.segment.trace import _core_and_ring, _fill_holes, _sample_at
 
 __all__ = ["shadow_left_out", "shadow_off"]
@@ -266,13 +267,8 @@ def _levels(
     # Medians of a few thousand evenly spaced pixels: the levels need no more.
     ground_values = gray.ravel()[_sample_at(ring)]
     rock, ground = float(np.median(gray.ravel()[_sample_at(core)])), float(np.median(ground_values))
-    noise = _spread(ground_values, ground)
+    noise = robust_spread(ground_values, ground)
     return rock, ground, noise
-
-
-def _spread(values: NDArray[np.floating], median: float) -> float:
-    """Robust standard deviation (scaled median absolute deviation)."""
-    return 1.4826 * float(np.median(np.abs(values - median)))
 
 
 @dataclass(frozen=True)
