@@ -441,6 +441,7 @@ def _score_one(task: tuple[str, str, int]) -> list[dict]:
             record.update(asdict(score_crowd(found, truth)))
         else:
             record.update(asdict(score_rock(found == 1, truth == 1)))
+            record.update(lighter=rock_is_lighter(pixels, truth == 1))
         record.update(seconds=seconds, error=error, score=score)
         records.append(record)
     return records
@@ -599,6 +600,41 @@ def _pct(x: float) -> str:
     return f"{100 * x:.1f}%"
 
 
+def rock_is_lighter(pixels: NDArray, rock: NDArray[np.bool_]) -> bool | None:
+    """Whether the true rock is brighter than the ground around it (medians of
+    the gray photo over the rock and over a ring a fifth to half of its
+    equivalent radius outside); None for an empty rock or ring."""
+    import cv2
+
+    area = int(rock.sum())
+    if area == 0:
+        return None
+    radius = float(np.sqrt(area / np.pi))
+    outside = cv2.distanceTransform((~rock).astype(np.uint8), cv2.DIST_L2, 3)
+    ring = (outside > max(1.0, 0.2 * radius)) & (outside <= max(3.0, 0.5 * radius))
+    if not ring.any():
+        return None
+    gray = _gray(pixels)
+    return bool(np.median(gray[rock]) > np.median(gray[ring]))
+
+
+def by_brightness(records: list[dict], part: str, method: str = "rockscan") -> dict[str, tuple[int, int]]:
+    """Photos of one rock and crops at IoU >= 0.9, of all, for rocks lighter
+    and darker than their ground (``rock_is_lighter``): {"lighter": (right, n), "darker": ...}."""
+    out = {}
+    for name, value in (("lighter", True), ("darker", False)):
+        rs = [
+            r
+            for r in records
+            if r["part"] == part
+            and r["method"] == method
+            and r["kind"] != "all"
+            and r.get("lighter") is value
+        ]
+        out[name] = (sum(r["iou"] >= IOU_GOOD for r in rs), len(rs))
+    return out
+
+
 def score_auroc(records: list[dict], part: str, method: str = "rockscan") -> tuple[float, int, int]:
     """AUROC of the segmentation score: outlines of IoU >= 0.9 against those below 0.8.
 
@@ -746,6 +782,13 @@ def main(argv: list[str] | None = None) -> int:
         auroc, n_good, n_bad = score_auroc(records, part)
         if n_good or n_bad:
             print(f"{part}: segmentation_score AUROC {auroc:.3f} (IoU >= 0.9: {n_good}, IoU < 0.8: {n_bad})")
+        split = by_brightness(records, part)
+        if any(n for _, n in split.values()):
+            cells = ", ".join(
+                f"{name} than the ground {right}/{n} ({_pct(right / max(n, 1))})"
+                for name, (right, n) in split.items()
+            )
+            print(f"{part}: rockscan at IoU >= 0.9 on rocks {cells}")
     if args.json:
         args.json.write_text(json.dumps(_finite({"rows": rows, "records": records}), indent=1))
     if args.figures:

@@ -403,3 +403,27 @@ def test_a_label_image_of_the_wrong_shape_is_refused():
     method = bench.as_method(lambda pixels, *, all_rocks: np.zeros((3, 3), np.int32))
     with pytest.raises(ValueError, match="shape"):
         method(np.zeros((10, 10), np.uint8), "one")
+
+
+def test_a_rock_is_lighter_or_darker_than_the_ground_around_it():
+    rr, cc = np.mgrid[:90, :120]
+    rock = (rr - 45) ** 2 + (cc - 60) ** 2 <= 20**2
+    for rock_level, ground_level, lighter in ((200, 90, True), (40, 90, False)):
+        gray = np.where(rock, rock_level, ground_level).astype(np.uint8)
+        assert bench.rock_is_lighter(np.dstack([gray] * 3), rock) is lighter
+    assert bench.rock_is_lighter(np.zeros((20, 20), np.uint8), np.zeros((20, 20), bool)) is None
+
+
+def test_right_outlines_are_counted_apart_for_light_and_dark_rocks():
+    def record(iou, lighter, kind="one", method="rockscan"):
+        return {"part": "dev", "method": method, "kind": kind, "iou": iou, "lighter": lighter}
+
+    records = [
+        record(0.95, True),
+        record(0.5, True),
+        record(0.92, False),
+        record(0.99, None),  # a rock without a ring of ground counts in neither
+        record(0.99, True, method="otsu"),
+        {"part": "dev", "method": "rockscan", "kind": "all", "iou": None},
+    ]
+    assert bench.by_brightness(records, "dev") == {"lighter": (1, 2), "darker": (1, 1)}
