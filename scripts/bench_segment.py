@@ -623,16 +623,14 @@ def by_brightness(records: list[dict], part: str, method: str = "rockscan") -> d
     and darker than their ground (``rock_is_lighter``): {"lighter": (right, n), "darker": ...}."""
     out = {}
     for name, value in (("lighter", True), ("darker", False)):
-        rs = [
-            r
-            for r in records
-            if r["part"] == part
-            and r["method"] == method
-            and r["kind"] != "all"
-            and r.get("lighter") is value
-        ]
+        rs = [r for r in _single(records, part, method) if r.get("lighter") is value]
         out[name] = (sum(r["iou"] >= IOU_GOOD for r in rs), len(rs))
     return out
+
+
+def _single(records: list[dict], part: str, method: str) -> list[dict]:
+    """A method's records of a part's photos of one rock and crops."""
+    return [r for r in records if r["part"] == part and r["method"] == method and r["kind"] != "all"]
 
 
 def score_auroc(records: list[dict], part: str, method: str = "rockscan") -> tuple[float, int, int]:
@@ -642,14 +640,7 @@ def score_auroc(records: list[dict], part: str, method: str = "rockscan") -> tup
     neither right nor clearly wrong). Returns (AUROC, n right, n wrong);
     NaN when either side is empty.
     """
-    rs = [
-        r
-        for r in records
-        if r["part"] == part
-        and r["method"] == method
-        and r["kind"] != "all"
-        and np.isfinite(r.get("score", np.nan))
-    ]
+    rs = [r for r in _single(records, part, method) if np.isfinite(r.get("score", np.nan))]
     good = np.array([r["score"] for r in rs if r["iou"] >= IOU_GOOD])
     bad = np.array([r["score"] for r in rs if r["iou"] < 0.8])
     if not good.size or not bad.size:
