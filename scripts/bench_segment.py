@@ -21,6 +21,11 @@ above that threshold a match is unique), merges (found regions holding most of
 two or more true rocks) and splits (true rocks holding most of two or more
 found regions).
 
+After the table, for each part: the AUROC of rockscan's segmentation score
+(outlines of IoU >= 0.9 against those below 0.8), and rockscan's share at
+IoU >= 0.9 apart for rocks lighter and darker than their ground (judged on
+the truth: the rock's median gray against a ring of ground round it).
+
 Rows:
 
 * ``rockscan``: ``rockscan.core.segment.segment``; the main rock (or every rock

@@ -368,26 +368,21 @@ def test_ctrl_c_on_two_workers_ranks_what_is_done_and_says_how_to_finish(folder,
     code = "import sys; from rockscan.cli import main; sys.argv[0] = 'rockscan'; main()"
     args = ["triage", str(root), "-o", str(report), "-j", "2"]
     # A session of its own: Ctrl-C on a terminal reaches the whole process group.
-    for _ in range(3):
-        proc = subprocess.Popen(
-            [sys.executable, "-c", code, *args],
-            stdout=subprocess.PIPE,
-            stderr=subprocess.PIPE,
-            start_new_session=True,
-        )
-        deadline = time.monotonic() + 120
-        while time.monotonic() < deadline and proc.poll() is None:
-            if report.exists() and report.read_bytes().count(b"\n") >= 9:  # provenance and 8 rows
-                break
-            time.sleep(0.005)
-        # A run that ended before Ctrl-C could be sent (a machine that kept
-        # this process waiting) says nothing: start again. One that was still
-        # running must stop at Ctrl-C.
-        if proc.poll() is None:
-            os.killpg(proc.pid, signal.SIGINT)
+    # Ctrl-C acts as at a terminal: a suite started in the background by a
+    # shell without job control has SIGINT ignored, and the run would inherit it.
+    proc = subprocess.Popen(
+        [sys.executable, "-c", code, *args],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        start_new_session=True,
+        preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL),
+    )
+    deadline = time.monotonic() + 120
+    while time.monotonic() < deadline and proc.poll() is None:
+        if report.exists() and report.read_bytes().count(b"\n") >= 9:  # provenance and 8 rows
             break
-        proc.communicate(timeout=60)
-        report.unlink()
+        time.sleep(0.005)
+    os.killpg(proc.pid, signal.SIGINT)
     _, err = proc.communicate(timeout=60)
     assert proc.returncode == 130, err
     assert err.decode().strip().splitlines()[-1].startswith("rockscan: interrupted after ")
