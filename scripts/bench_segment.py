@@ -781,7 +781,7 @@ def main(argv: list[str] | None = None) -> int:
         split = by_brightness(records, part)
         if any(n for _, n in split.values()):
             cells = ", ".join(
-                f"{name} than the ground {right}/{n} ({_pct(right / max(n, 1))})"
+                f"{name} than the ground {right}/{n}" + (f" ({_pct(right / n)})" if n else "")
                 for name, (right, n) in split.items()
             )
             print(f"{part}: rockscan at IoU >= 0.9 on rocks {cells}")
