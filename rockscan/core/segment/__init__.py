@@ -315,9 +315,15 @@ def _placed(
         return None
     rows = np.floor((np.arange(r0, r1) + 0.5) * scale_rowcol[0] / own[0]).astype(np.int64) - o0
     cols = np.floor((np.arange(c0, c1) + 0.5) * scale_rowcol[1] / own[1]).astype(np.int64) - o1
-    on_rows, on_cols = (rows >= 0) & (rows < h), (cols >= 0) & (cols < w)
+    # The indices rise with the window's: the pixels over the rock are one
+    # block, filled by a gather of rows, then of columns (a 2-D fancy index
+    # would cost a hundred times more on the rock's own grid).
+    on_rows = np.flatnonzero((rows >= 0) & (rows < h))
+    on_cols = np.flatnonzero((cols >= 0) & (cols < w))
     mask = np.zeros((r1 - r0, c1 - c0), bool)
-    mask[np.ix_(on_rows, on_cols)] = rock.mask[np.ix_(rows[on_rows], cols[on_cols])]
+    if on_rows.size and on_cols.size:
+        block = rock.mask.take(rows[on_rows], axis=0).take(cols[on_cols], axis=1)
+        mask[on_rows[0] : on_rows[-1] + 1, on_cols[0] : on_cols[-1] + 1] = block
     return mask
 
 
