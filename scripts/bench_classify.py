@@ -126,10 +126,16 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--size", default="768x1024", help="photo size ROWSxCOLS (default 768x1024)")
     parser.add_argument("--format", default="png", choices=["png", "jpg"], help="file format (default png)")
     parser.add_argument("--seed", type=int, default=7, help="render seed (default 7)")
+    parser.add_argument(
+        "--shape", default=None, help="default library shape to draw (default: the first, rounded-triangle)"
+    )
     args = parser.parse_args(argv)
     rows, cols = (int(v) for v in args.size.lower().split("x"))
     library = default_library()
-    spec = read_spec(default_spec_path())[0]
+    specs = {spec.name: spec for spec in read_spec(default_spec_path())}
+    if args.shape is not None and args.shape not in specs:
+        parser.error(f"--shape must be one of {', '.join(specs)}")
+    spec = specs[args.shape] if args.shape else next(iter(specs.values()))
     photo = render_photo(spec.params, RenderConfig(rows=rows, cols=cols), rng=args.seed, name=spec.name)
     with tempfile.TemporaryDirectory() as folder:
         path = str(Path(folder) / f"rock.{args.format}")

@@ -197,6 +197,27 @@ def test_rendered_rocks_are_segmented_with_iou_at_least_095(case, seed):
     np.testing.assert_allclose(rocks[0].outline.centroid_rowcol, (cy, cx), atol=1.5)
 
 
+@pytest.mark.parametrize("name", ["five-armed-star", "six-pointed-star"])
+def test_a_rendered_star_takes_the_fast_path(name):
+    # A star's outline scores under FAST_SCORE for its arms (solidity), not
+    # for want of support: lobed all round, it stops at its first outline as
+    # a blob would, instead of going through every candidate and GrabCut.
+    from rockscan.core.segment import FAST_SCORE, _candidate_pool
+    from rockscan.core.segment.types import Segmentation
+
+    photo = render_photo(SPECS[name], RenderConfig(rows=300, cols=400), rng=3, name=name)
+    found = _candidate_pool(photo.pixels, SegmentConfig())
+    assert isinstance(found, Segmentation)
+    assert found.rocks[0].score < FAST_SCORE
+    shape = photo.pixels.shape[:2]
+    truth = polygon2mask(shape, truth_polygon(photo.truth))
+    rock = found.labels == 1
+    import cv2
+
+    rock = cv2.resize(rock.astype(np.uint8), (shape[1], shape[0]), interpolation=cv2.INTER_NEAREST) > 0
+    assert (rock & truth).sum() / (rock | truth).sum() >= 0.9
+
+
 # ---------------------------------------------------------------- bad input
 
 

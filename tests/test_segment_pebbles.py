@@ -7,7 +7,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from rockscan.core.segment.pebbles import pebbles_off
+from rockscan.core.segment.pebbles import lobed, pebbles_off
 
 SHAPE = (200, 240)
 
@@ -68,18 +68,55 @@ def test_a_rock_alone_and_the_arms_of_a_star_are_left_alone(mask):
     assert pebbles_off(mask) is mask
 
 
+def ellipse(row: float, col: float, half_rows: float, half_cols: float, angle: float = 0.0) -> np.ndarray:
+    rr, cc = np.mgrid[: SHAPE[0], : SHAPE[1]]
+    u = (rr - row) * np.cos(angle) + (cc - col) * np.sin(angle)
+    v = -(rr - row) * np.sin(angle) + (cc - col) * np.cos(angle)
+    return (u / half_rows) ** 2 + (v / half_cols) ** 2 <= 1
+
+
+def ring_of_lobes(angles: list[float]) -> np.ndarray:
+    mask = disk(100, 120, 45)
+    for a in angles:
+        mask |= disk(100 + 54 * np.sin(a), 120 + 54 * np.cos(a), 9)
+    return mask
+
+
 def test_alike_lobes_all_round_are_the_rocks_own_shape():
-    lobes = disk(100, 120, 45)
-    for k in range(8):
-        a = 2 * np.pi * k / 8
-        lobes |= disk(100 + 54 * np.sin(a), 120 + 54 * np.cos(a), 9)
+    lobes = ring_of_lobes([2 * np.pi * k / 8 for k in range(8)])
     assert pebbles_off(lobes) is lobes
     # Three of those lobes on one side are pebbles.
-    side = disk(100, 120, 45)
-    for k in range(3):
-        a = 2 * np.pi * k / 8
-        side |= disk(100 + 54 * np.sin(a), 120 + 54 * np.cos(a), 9)
+    side = ring_of_lobes([2 * np.pi * k / 8 for k in range(3)])
     assert pebbles_off(side).sum() < side.sum()
+
+
+def test_stars_and_lobes_all_round_are_lobed():
+    for mask in (star(5, 0.4), star(6, 0.35), star(4, 0.45), star(8, 0.4)):
+        assert lobed(mask)
+    assert lobed(ring_of_lobes([2 * np.pi * k / 8 for k in range(8)]))
+
+
+@pytest.mark.parametrize(
+    "mask",
+    [
+        disk(100, 120, 50),
+        star(5, 0.1),
+        disk(100, 120, 50) | disk(100, 176, 12),
+        ring_of_lobes([2 * np.pi * k / 8 for k in range(3)]),
+        # A rock with its shadow joined: a tail on one side.
+        disk(100, 100, 40) | ellipse(100, 150, 25, 45),
+        np.zeros(SHAPE, bool),
+    ],
+    ids=["disk", "shallow-star", "pebble", "lobes-on-one-side", "shadow-tail", "empty"],
+)
+def test_a_rock_alone_or_with_what_joined_it_on_one_side_is_not_lobed(mask):
+    assert not lobed(mask)
+
+
+@settings(max_examples=40, deadline=None)
+@given(a=st.floats(15, 95), b=st.floats(15, 95), angle=st.floats(0, np.pi))
+def test_an_ellipse_is_never_lobed(a, b, angle):
+    assert not lobed(ellipse(100, 120, a, b, angle))
 
 
 def test_the_default_librarys_shapes_are_left_alone():

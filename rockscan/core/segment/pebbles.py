@@ -32,7 +32,7 @@ from numpy.typing import NDArray
 
 from rockscan.core.segment.split import largest_part, opened
 
-__all__ = ["pebble_share", "pebbles_off"]
+__all__ = ["lobed", "pebble_share", "pebbles_off"]
 
 #: A piece counts as a pebble when the disk inscribed in it has at least this
 #: share of the radius of a disk of its area (a blunt lobe, not a star's arm).
@@ -169,15 +169,9 @@ def pebbles_off(mask: NDArray[np.bool_]) -> NDArray[np.bool_]:
     found = _pieces(mask, CUT_SHARE, by_distance=True)
     if found is None or not found.round_necked.any():
         return mask
-    typical = float(np.median(found.size[found.round_necked]))
     # Any piece of much the pebbles' size counts towards lobes, round or not:
     # the arms of a star are cut off as several pieces, only some of them round.
-    alike = np.flatnonzero(
-        (found.size >= max(4.0, 0.005 * float(found.region.sum())))
-        & (found.size <= LOBES_ALIKE * typical)
-        & (LOBES_ALIKE * found.size >= typical)
-    )
-    alike = alike[alike > 0]
+    alike = _alike(found, float(np.median(found.size[found.round_necked])))
     if alike.size >= LOBES and _all_round(found, alike):
         return mask
     pebbles = found.round_necked[found.labels][2:-2, 2:-2]
@@ -190,6 +184,44 @@ def pebbles_off(mask: NDArray[np.bool_]) -> NDArray[np.bool_]:
     kept[r0:r1, c0:c1] &= ~pebbles
     part = largest_part(kept)
     return mask if part is None else part
+
+
+def lobed(mask: NDArray[np.bool_]) -> bool:
+    """Whether a region is lobed all round, as a star is: what an opening takes off it
+    (as :func:`pebbles_off` opens) is ``LOBES`` or more pieces, all of much
+    the same size, lying all round the body.
+
+    A lobed region is not solid, yet nothing joined it: a rock with a pebble
+    or its shadow joined has what hangs off it on one side only.
+
+    Parameters
+    ----------
+    mask : (h, w) ndarray of bool
+        One region.
+
+    Returns
+    -------
+    bool
+    """
+    found = _pieces(mask, CUT_SHARE, by_distance=True)
+    if found is None:
+        return False
+    pieces = _alike(found, None)
+    if pieces.size < LOBES:
+        return False
+    typical = float(np.median(found.size[pieces]))
+    return _alike(found, typical).size == pieces.size and _all_round(found, pieces)
+
+
+def _alike(found: _Pieces, typical: float | None) -> NDArray[np.int64]:
+    """The pieces that are more than specks (of any size when ``typical`` is
+    None, else within a factor ``LOBES_ALIKE`` of it)."""
+    size = found.size
+    keep = size >= max(4.0, 0.005 * float(found.region.sum()))
+    if typical is not None:
+        keep &= (size <= LOBES_ALIKE * typical) & (LOBES_ALIKE * size >= typical)
+    keep[0] = False
+    return np.flatnonzero(keep)
 
 
 def _all_round(found: _Pieces, pieces: NDArray[np.int64]) -> bool:
