@@ -101,11 +101,11 @@ def test_a_crisp_pebble_beside_an_unrivalled_rock_is_not_taken_for_it(condition,
     assert score.iou >= 0.85, round(score.iou, 3)
 
 
-@pytest.mark.parametrize("index", [7, 19])
+@pytest.mark.parametrize("index", [3, 19])
 def test_pebbles_pressed_against_the_rock_are_cut_off_its_outline(index):
-    # Development photos of touching pebbles as dark as the rock: every cue
-    # outlined the rock with its pebbles (IoU 0.90 and 0.91) until the
-    # pebbles were cut off the main rock along their contacts (0.97 both).
+    # Development photos of touching pebbles as dark as the rock: the chosen
+    # outline holds the rock with its pebbles (IoU 0.90 and 0.91) until the
+    # pebbles are cut off the main rock along their contacts (0.96 and 0.97).
     score = judged("touching-pebbles", index)
     assert score.iou >= 0.95, round(score.iou, 3)
 

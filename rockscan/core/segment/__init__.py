@@ -596,7 +596,7 @@ class _Outliner:
 
     def refined(self, found: Segmentation) -> Iterator[tuple[str, Segmentation]]:
         """Other outlines of a found main rock, each with its source (``choose.SOURCES``):
-        GrabCut from it and from boxes round it, the Otsu part and the watershed
+        GrabCut from it and from most of the frame, the Otsu part and the watershed
         basin under the frame's centre, the basin of its core, and those
         outlines with touching pebbles opened off."""
         work, up, detection = self.works[id(found)]
@@ -619,8 +619,7 @@ class _Outliner:
         ]
         if self.config.polarity == "auto":
             # A box's GrabCut knows no polarity: it stays out when the user set one.
-            boxes = zip(_BOX_NAMES, _boxes(rock, work.shape[:2]), strict=True)
-            masks += [(name, _grabcut_box(work, self.dtype, box)) for name, box in boxes]
+            masks.append(("box-frame", _grabcut_box(work, self.dtype, _frame_box(work.shape[:2]))))
         # A rock is no smaller than the detection's smallest region may be.
         least = self.config.min_area_fraction * work.shape[0] * work.shape[1]
         for source, mask in masks:
@@ -745,24 +744,11 @@ def _grabcut(work: NDArray[np.generic], dtype: np.dtype, rock: RockMask) -> NDAr
     return out
 
 
-def _boxes(rock: RockMask, shape: tuple[int, int]) -> list[tuple[int, int, int, int]]:
-    """Boxes a rock may lie in: around the outline, widened on every side, and most of the frame."""
+def _frame_box(shape: tuple[int, int]) -> tuple[int, int, int, int]:
+    """Most of the frame: a rock lies in it, wherever its first outline put it."""
     rows, cols = shape
-    r0, c0 = rock.origin_rowcol
-    h, w = rock.mask.shape
-    boxes = []
-    for grow in _BOX_GROW:
-        g = round(grow * max(h, w))
-        boxes.append((max(0, r0 - g), min(rows, r0 + h + g), max(0, c0 - g), min(cols, c0 + w + g)))
     mr, mc = round(0.08 * rows), round(0.08 * cols)
-    boxes.append((mr, rows - mr, mc, cols - mc))
-    return boxes
-
-
-#: How far the boxes round an outline reach beyond it, in units of its longer side.
-_BOX_GROW = (0.25, 0.6)
-#: Sources of the boxes' GrabCut outlines, in the order ``_boxes`` gives them.
-_BOX_NAMES = ("box-near", "box-far", "box-frame")
+    return (mr, rows - mr, mc, cols - mc)
 
 
 def _grabcut_box(

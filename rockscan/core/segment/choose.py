@@ -57,7 +57,7 @@ __all__ = [
 
 #: Where a candidate comes from: the detection's own threshold outlines
 #: ("detected", placed between pixels), then the other cues of
-#: ``rockscan.core.segment`` (GrabCut from the outline and from three boxes,
+#: ``rockscan.core.segment`` (GrabCut from the outline and from most of the frame,
 #: the Otsu class and the watershed basin under the frame's centre, the basin
 #: of the outline's core, and two outlines with touching pebbles opened off).
 #: Each cue has a column of its own: the model learns how far each is to be trusted.
@@ -69,8 +69,6 @@ SOURCES = (
     "core-basin",
     "opened",
     "opened-core",
-    "box-near",
-    "box-far",
     "box-frame",
 )
 
