@@ -1,4 +1,4 @@
-"""Touching rocks parted, the segmentation score, and the confident-outline rule.
+"""Touching rocks parted (with the per-label maxima it reads), the segmentation score, and the confident-outline rule.
 
 Drawn photos with exact answers: touching discs (the count is known), an
 outline that is right, shrunk, grown or half of the rock (the score must
@@ -238,3 +238,24 @@ def test_a_deeply_lobed_star_is_cut_at_its_lobes_in_the_last_look():
     assert BLOB_NECK_SHARE > NECK_SHARE
     assert len(split_necks(star, 0.1 * star.sum())) == 1
     assert len(split_blobs(star)) > 1
+
+
+# ---------------------------------------------------------------- statistics
+
+
+@settings(max_examples=60, deadline=None)
+@given(
+    count=st.integers(1, 9),
+    shape=st.tuples(st.integers(0, 12), st.integers(1, 12)),
+    seed=st.integers(0, 2**16),
+)
+def test_label_maxima_is_the_largest_value_under_each_label_and_at_least_zero(count, shape, seed):
+    from rockscan.core.segment.stats import label_maxima
+
+    rng = np.random.default_rng(seed)
+    labels = rng.integers(0, count, shape)
+    values = rng.normal(size=shape).astype(np.float32)
+    got = label_maxima(values, labels, count)
+    for k in range(count):
+        under = values[labels == k]
+        assert got[k] == max(0.0, float(under.max()) if under.size else 0.0)

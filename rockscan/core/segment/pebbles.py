@@ -31,6 +31,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from rockscan.core.segment.split import largest_part, opened
+from rockscan.core.segment.stats import label_maxima
 
 __all__ = ["lobed", "pebble_share", "pebbles_off"]
 
@@ -98,8 +99,7 @@ def _pieces(mask: NDArray[np.bool_], share: float, *, by_distance: bool = False)
     # The pieces are apart, so one distance map gives each its inscribed radius.
     inside = labels > 0
     distance = cv2.distanceTransform(inside.astype(np.uint8), cv2.DIST_L2, 5)
-    inscribed = np.zeros(count)
-    np.maximum.at(inscribed, labels[inside], distance[inside])
+    inscribed = label_maxima(distance, labels, count)
     rim = cv2.dilate(body.astype(np.uint8), np.ones((3, 3), np.uint8)).astype(bool)
     contact = np.maximum(np.bincount(labels[rim], minlength=count), 1)
     size = stats[:, cv2.CC_STAT_AREA].astype(np.float64)

@@ -28,6 +28,8 @@ from collections.abc import Callable
 import numpy as np
 from numpy.typing import NDArray
 
+from rockscan.core.segment.stats import label_maxima
+
 __all__ = [
     "label_image",
     "largest_part",
@@ -410,8 +412,7 @@ def _flood_and_join(
     if count <= 2:
         return region.astype(np.int32)
     basins = watershed(-values, markers, mask=region).astype(np.int32)
-    top = np.zeros(count, np.float64)
-    np.maximum.at(top, basins.ravel(), values.ravel())
+    top = label_maxima(values, basins, count)
     # Passes between 4-neighbours of different basins: the lower of the two
     # pixels; a pair's pass is the highest such value along their border.
     pairs, heights = [], []
