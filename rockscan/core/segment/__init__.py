@@ -394,7 +394,7 @@ def _main_scored(found: Segmentation, probabilities: NDArray[np.float64]) -> Seg
     the model was not fitted on (the 40th to 59th of each condition), AUROC
     0.885 against 0.820 (IoU >= 0.9 against < 0.8). An outline the fast path
     takes is supported all round and keeps its outline score (>= ``FAST_SCORE``,
-    or less for a lobed rock's arms: see :func:`_fast_score`).
+    or less for a lobed rock's arms: see :func:`_fast_outline`).
     """
     main = dataclasses.replace(found.rocks[0], score=float(probabilities.max()))
     return dataclasses.replace(found, rocks=(main, *found.rocks[1:]))
@@ -470,7 +470,7 @@ def _candidate_pool(
                 fast
                 and not rivals_seen
                 and candidate is detection
-                and _fast_score(found.rocks[0]) >= FAST_SCORE
+                and _fast_outline(found.rocks[0])
                 and _unrivalled(detection)
             ):
                 return found
@@ -493,18 +493,21 @@ def _candidate_pool(
 FAST_SCORE = 0.995
 
 
-def _fast_score(rock: RockMask) -> float:
-    """The score a rock's first outline needs for the fast path: its outline
-    score, or for an outline lobed all round (``pebbles.lobed``) the score
-    its evidence gives without solidity.
+def _fast_outline(rock: RockMask) -> bool:
+    """Whether a rock's first outline scores enough for the fast path: its
+    outline score, or for an outline lobed all round (``pebbles.lobed``) the
+    score its evidence gives without solidity, at least ``FAST_SCORE``.
 
     Solidity keeps the fast path off an outline that took in a pebble or a
     shadow, but a star's arms are its shape, and a lobed rock took nothing in.
     """
-    if rock.score >= FAST_SCORE or len(rock.evidence) != len(WEIGHTS) or not lobed(rock.mask):
-        return rock.score
+    if rock.score >= FAST_SCORE:
+        return True
+    if len(rock.evidence) != len(WEIGHTS):
+        return False
     *support, _ = rock.evidence
-    return outline_score(OutlineEvidence(*support, solidity=1.0))
+    # The opening that tells lobes costs more than the score: it comes last.
+    return outline_score(OutlineEvidence(*support, solidity=1.0)) >= FAST_SCORE and lobed(rock.mask)
 
 
 def _unrivalled(detection: _Detection) -> bool:
