@@ -80,6 +80,9 @@ Steps (see :func:`segment`):
 7. **Candidates and choice** (photos of one rock): other cues outline the
    main rock too, and a model fitted on the segmentation benchmark's
    development part chooses among them (``rockscan.core.segment.choose``).
+   An easy photo stops at its first outline (the fast path): that of the
+   region that stood out above all others, scoring at least ``FAST_SCORE``
+   (an outline lobed all round, a star's, without its solidity counted).
    Unless the choice is sure (probability ``FAST_PROBABILITY``), a
    candidate inside the chosen outline replaces it when the part it leaves
    out is a cast shadow darker than the rock (``shadow.shadow_left_out``).
