@@ -209,8 +209,10 @@ def lobed(mask: NDArray[np.bool_]) -> bool:
     pieces = _alike(found, None)
     if pieces.size < LOBES:
         return False
-    typical = float(np.median(found.size[pieces]))
-    return _alike(found, typical).size == pieces.size and _all_round(found, pieces)
+    sizes = found.size[pieces]
+    typical = float(np.median(sizes))
+    alike = sizes.max() <= LOBES_ALIKE * typical and LOBES_ALIKE * sizes.min() >= typical
+    return bool(alike) and _all_round(found, pieces)
 
 
 def _alike(found: _Pieces, typical: float | None) -> NDArray[np.int64]:
