@@ -207,24 +207,33 @@ def test_of_outlines_of_one_object_the_detected_is_kept():
     assert choose(found, [1.0, 1.0], ["box-frame", "detected"])[0] == 1
 
 
-def _walk(x: np.ndarray) -> float:
-    """The choice model's log-odds of one feature row, tree by tree, node by node."""
-    m = choice_model
-    total = m.BIAS
-    for root in m.ROOTS:
+#: Both tree sets of the choice model: the whole pool's, and the detected candidates' alone.
+TREES = [False, True]
+
+
+def _arrays(detected_only: bool) -> dict[str, np.ndarray]:
+    prefix = "DETECTED_" if detected_only else ""
+    names = ("BIAS", "DEPTH", "ROOTS", "FEATURE", "LEFT", "RIGHT", "THRESHOLD", "VALUE")
+    return {name: getattr(choice_model, prefix + name) for name in names}
+
+
+def _walk(x: np.ndarray, m: dict[str, np.ndarray]) -> float:
+    """The log-odds of one feature row, tree by tree, node by node."""
+    total = m["BIAS"]
+    for root in m["ROOTS"]:
         node = int(root)
-        while m.FEATURE[node] >= 0:
-            node = int(m.LEFT[node] if x[m.FEATURE[node]] <= m.THRESHOLD[node] else m.RIGHT[node])
-        total += m.VALUE[node]
+        while m["FEATURE"][node] >= 0:
+            k = m["FEATURE"][node]
+            node = int(m["LEFT"][node] if x[k] <= m["THRESHOLD"][node] else m["RIGHT"][node])
+        total += m["VALUE"][node]
     return total
 
 
-def _feature_rows(rng: np.random.Generator, n: int) -> np.ndarray:
-    """Feature rows spread over the model's own thresholds, each source flag 0 or 1."""
-    m = choice_model
+def _feature_rows(rng: np.random.Generator, n: int, m: dict[str, np.ndarray]) -> np.ndarray:
+    """Feature rows spread over the trees' own thresholds, each source flag 0 or 1."""
     rows = np.empty((n, len(FEATURES)))
     for k in range(len(FEATURES)):
-        cuts = m.THRESHOLD[m.FEATURE == k]
+        cuts = m["THRESHOLD"][m["FEATURE"] == k]
         low, high = (cuts.min() - 1.0, cuts.max() + 1.0) if cuts.size else (-1.0, 1.0)
         rows[:, k] = rng.uniform(low, high, n)
     sources = [FEATURES.index(f"from_{s}") for s in SOURCES[1:]]
@@ -232,24 +241,36 @@ def _feature_rows(rng: np.random.Generator, n: int) -> np.ndarray:
     return rows
 
 
-def test_the_trees_are_walked_all_at_once_as_one_by_one():
-    m = choice_model
-    assert m.ROOTS.size >= 10 and m.DEPTH >= 1
+@pytest.mark.parametrize("detected_only", TREES)
+def test_the_trees_are_walked_all_at_once_as_one_by_one(detected_only):
+    m = _arrays(detected_only)
+    assert m["ROOTS"].size >= 10 and m["DEPTH"] >= 1
     # Every node is a leaf or points at two nodes of its own tree, deeper down.
-    inner = np.flatnonzero(m.FEATURE >= 0)
-    assert np.all(m.LEFT[inner] > inner) and np.all(m.RIGHT[inner] > inner)
-    assert m.FEATURE.max() < len(FEATURES)
-    x = _feature_rows(np.random.default_rng(0), 200)
-    expected = 1.0 / (1.0 + np.exp(-np.array([_walk(row) for row in x])))
-    np.testing.assert_allclose(choice_probabilities(x), expected, rtol=1e-12, atol=1e-15)
+    inner = np.flatnonzero(m["FEATURE"] >= 0)
+    assert np.all(m["LEFT"][inner] > inner) and np.all(m["RIGHT"][inner] > inner)
+    assert m["FEATURE"].max() < len(FEATURES)
+    x = _feature_rows(np.random.default_rng(0), 200, m)
+    expected = 1.0 / (1.0 + np.exp(-np.array([_walk(row, m) for row in x])))
+    got = choice_probabilities(x, detected_only=detected_only)
+    np.testing.assert_allclose(got, expected, rtol=1e-12, atol=1e-15)
+
+
+def test_the_two_tree_sets_differ():
+    x = _feature_rows(np.random.default_rng(1), 200, _arrays(True))
+    assert np.abs(choice_probabilities(x) - choice_probabilities(x, detected_only=True)).max() > 0.05
 
 
 @settings(max_examples=60, deadline=None)
-@given(seed=st.integers(0, 2**32 - 1), feature=st.sampled_from([f for f, sign in MONOTONE.items() if sign]))
-def test_more_evidence_for_an_outline_never_lowers_its_probability(seed, feature):
+@given(
+    seed=st.integers(0, 2**32 - 1),
+    feature=st.sampled_from([f for f, sign in MONOTONE.items() if sign]),
+    detected_only=st.sampled_from(TREES),
+)
+def test_more_evidence_for_an_outline_never_lowers_its_probability(seed, feature, detected_only):
     k = FEATURES.index(feature)
-    x = _feature_rows(np.random.default_rng(seed), 20)
+    x = _feature_rows(np.random.default_rng(seed), 20, _arrays(detected_only))
     more = x.copy()
     more[:, k] += MONOTONE[feature] * np.random.default_rng(seed + 1).uniform(0.0, 3.0, 20)
-    assert np.all(choice_probabilities(more) >= choice_probabilities(x) - 1e-12)
+    before = choice_probabilities(x, detected_only=detected_only)
+    assert np.all(choice_probabilities(more, detected_only=detected_only) >= before - 1e-12)
     assert set(MONOTONE) == set(FEATURES)

@@ -28,15 +28,21 @@ wins: gradient-boosted regression trees (:func:`choice_probabilities`),
 fitted on the development part of the segmentation benchmark
 (``scripts/fit_segment_choice.py``, which also fits the one-weight-per-feature
 logistic model they replaced, as a baseline). The winner's probability
-decides whether the refinements are worth making, and becomes the rock's
-segmentation score (``rockscan.core.segment.segment``): it ranks right
-outlines above wrong ones better than the outline's own evidence.
+becomes the rock's segmentation score (``rockscan.core.segment.segment``):
+it ranks right outlines above wrong ones better than the outline's own
+evidence.
+
+The refinements (GrabCut above all) cost most, so the detection's own
+outlines are judged first, alone, by trees of their own fitted on such
+pools (``detected_only``); only when none of them is sure are the other
+cues' outlines made and the whole pool judged.
 """
 
 from __future__ import annotations
 
 import math
 from collections.abc import Sequence
+from typing import NamedTuple
 
 import numpy as np
 from numpy.typing import NDArray
@@ -211,7 +217,25 @@ def _features(
     return np.array(rows, dtype=np.float64).reshape(len(candidates), len(FEATURES))
 
 
-def choice_probabilities(features: NDArray) -> NDArray[np.float64]:
+class _Trees(NamedTuple):
+    """Gradient-boosted trees as flat node arrays (``choice_model``; a leaf's feature is -1)."""
+
+    bias: float
+    depth: int
+    roots: NDArray[np.int64]
+    feature: NDArray[np.int64]
+    left: NDArray[np.int64]
+    right: NDArray[np.int64]
+    threshold: NDArray[np.float64]
+    value: NDArray[np.float64]
+
+
+def _trees(prefix: str) -> _Trees:
+    names = ("BIAS", "DEPTH", "ROOTS", "FEATURE", "LEFT", "RIGHT", "THRESHOLD", "VALUE")
+    return _Trees(*(getattr(choice_model, prefix + name) for name in names))
+
+
+def choice_probabilities(features: NDArray, *, detected_only: bool = False) -> NDArray[np.float64]:
     """The choice model's probability that each candidate outlines the rock.
 
     The model (``choice_model``) is an ensemble of small regression trees
@@ -225,21 +249,26 @@ def choice_probabilities(features: NDArray) -> NDArray[np.float64]:
     ----------
     features : (n, len(FEATURES)) ndarray
         ``choice_features`` of the candidates.
+    detected_only : bool
+        The candidates are a detection's outlines alone, before the other
+        cues' refinements: trees fitted on such pools judge them. Their
+        consensus is among fewer and like-made candidates, and the trees of
+        the whole pool, which never saw it so, are unsure of them.
 
     Returns
     -------
     probabilities : (n,) ndarray of float64
     """
     x = np.asarray(features, dtype=np.float64).reshape(-1, len(FEATURES))
-    model = choice_model
+    model = _trees("DETECTED_" if detected_only else "")
     rows = np.arange(x.shape[0])[:, None]
-    node = np.broadcast_to(model.ROOTS, (x.shape[0], model.ROOTS.size)).copy()
+    node = np.broadcast_to(model.roots, (x.shape[0], model.roots.size)).copy()
     # Every tree is walked at once, one level a step; a leaf stays where it is.
-    for _ in range(model.DEPTH):
-        feature = model.FEATURE[node]
-        left = x[rows, np.maximum(feature, 0)] <= model.THRESHOLD[node]
-        node = np.where(feature < 0, node, np.where(left, model.LEFT[node], model.RIGHT[node]))
-    t = np.clip(model.BIAS + model.VALUE[node].sum(axis=1), -50.0, 50.0)
+    for _ in range(model.depth):
+        feature = model.feature[node]
+        left = x[rows, np.maximum(feature, 0)] <= model.threshold[node]
+        node = np.where(feature < 0, node, np.where(left, model.left[node], model.right[node]))
+    t = np.clip(model.bias + model.value[node].sum(axis=1), -50.0, 50.0)
     return 1.0 / (1.0 + np.exp(-t))
 
 
@@ -258,6 +287,8 @@ def choose_ranked(
     candidates: Sequence[Segmentation],
     detection_scores: Sequence[float],
     sources: Sequence[str] | None = None,
+    *,
+    detected_only: bool = False,
 ) -> tuple[int, NDArray[np.float64]]:
     """Index of the candidate that outlines the rock, and the probability that it does.
 
@@ -276,6 +307,9 @@ def choose_ranked(
     sources : sequence of str, optional
         Where each candidate comes from (:data:`SOURCES`); "detected" for all
         when not given.
+    detected_only : bool
+        The candidates are a detection's outlines alone, judged by the trees
+        fitted on such pools (:func:`choice_probabilities`).
 
     Returns
     -------
@@ -288,7 +322,7 @@ def choose_ranked(
     sources = _sources(sources, len(candidates))
     ious = _mutual_ious(candidates)
     features = _features(candidates, detection_scores, sources, ious)
-    probabilities = choice_probabilities(features)
+    probabilities = choice_probabilities(features, detected_only=detected_only)
     best = int(np.argmax(probabilities))
     # The best is always among its own (a rock below the grid's cell has no IoU with itself).
     same = np.union1d(np.flatnonzero(ious[best] >= SAME_OBJECT), [best])
