@@ -118,3 +118,32 @@ def test_a_cast_shadow_that_joined_a_dark_rock_is_cut_off_its_outline(condition,
     # edge (0.98 and 0.97).
     score = judged(condition, index)
     assert score.iou >= 0.95, round(score.iou, 3)
+
+
+def test_a_light_rock_with_dark_beside_its_first_outline_takes_no_fast_path():
+    # Development photo "large" 2: a light rock lit from one side. Its lit
+    # part steps against the ground and against its own shaded rim alike,
+    # and the first outline (score >= FAST_SCORE) left the rim out (IoU
+    # 0.92). The rim, darker than the ground, lies beside that outline: the
+    # other candidates are judged, and the choice takes the whole rock.
+    from rockscan.core.segment import SHADE_BESIDE, _candidate_pool
+    from rockscan.core.segment.types import Segmentation, SegmentConfig
+
+    pixels, _, _ = bench_segment.photo("dev", "large", 2)
+    first = _candidate_pool(pixels, SegmentConfig(), fast=False).candidates[0][0]
+    assert first.polarity == "light" and first.rocks[0].darker_outside >= SHADE_BESIDE
+    assert not isinstance(_candidate_pool(pixels, SegmentConfig()), Segmentation)
+    score = judged("large", 2)
+    assert score.iou >= 0.95, round(score.iou, 3)
+
+
+def test_a_real_coin_with_nothing_dark_beside_it_keeps_the_fast_path():
+    # Flat, lit from above, a coin of coins() has no shaded rim: its first
+    # outline is final, as for the light rocks rendered from the default library.
+    from rockscan.core.segment import _candidate_pool
+    from rockscan.core.segment.types import Segmentation, SegmentConfig
+
+    crop, _ = bench_segment.coin_crops()[0]
+    found = _candidate_pool(crop, SegmentConfig())
+    assert isinstance(found, Segmentation)
+    assert found.polarity == "light" and found.rocks[0].darker_outside < 0.05

@@ -149,6 +149,24 @@ def test_the_score_prefers_the_right_outline_to_a_shrunk_grown_or_half_one():
         assert outline_score(outline_evidence(level, wrong, sides)) < CONFIDENT_SCORE < right
 
 
+def test_dark_beside_an_outline_is_measured_apart_from_its_score():
+    level, truth = disc_level()
+    yy, xx = np.mgrid[: truth.shape[0], : truth.shape[1]]
+    distance = np.hypot(yy - 60, xx - 60)
+    # A shaded rim darker than the ground, hugging the right half of the disc.
+    shaded = level.copy()
+    shaded[(distance > 30.5) & (distance <= 42) & (xx > 60)] -= 0.6
+    sides = (False,) * 4
+    plain, rimmed = outline_evidence(level, truth, sides), outline_evidence(shaded, truth, sides)
+    assert plain.darker_outside < 0.01
+    # The band beside the outline is half in the rim (both band edges are pixel-exact to a pixel or so).
+    assert rimmed.darker_outside == pytest.approx(0.5, abs=0.08)
+    # Not scored: the step across the outline and the level outside it, clipped at the
+    # ground's, hardly move (the ground's spread does: the rim lies in its ring).
+    assert len(rimmed.as_array()) == 6
+    np.testing.assert_allclose(rimmed.as_array()[:3], plain.as_array()[:3], atol=0.01)
+
+
 def test_an_outline_along_the_frame_scores_lower_than_inside_it():
     level, truth = disc_level()
     inside = outline_score(outline_evidence(level, truth, (False,) * 4))

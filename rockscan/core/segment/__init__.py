@@ -478,7 +478,7 @@ def _candidate_pool(
                 fast
                 and not rivals_seen
                 and candidate is detection
-                and _fast_outline(found.rocks[0])
+                and _fast_outline(found)
                 and _unrivalled(detection)
             ):
                 return found
@@ -501,14 +501,24 @@ def _candidate_pool(
 FAST_SCORE = 0.995
 
 
-def _fast_outline(rock: RockMask) -> bool:
-    """Whether a rock's first outline scores enough for the fast path: its
-    outline score, or for an outline lobed all round (``pebbles.lobed``) the
-    score its evidence gives without solidity, at least ``FAST_SCORE``.
+def _fast_outline(found: Segmentation) -> bool:
+    """Whether the main rock's first outline scores enough for the fast path:
+    its outline score, or for an outline lobed all round (``pebbles.lobed``)
+    the score its evidence gives without solidity, at least ``FAST_SCORE``;
+    and, for a rock lighter than its ground, with less than
+    ``SHADE_BESIDE`` of the band just outside it darker than the ground.
 
     Solidity keeps the fast path off an outline that took in a pebble or a
     shadow, but a star's arms are its shape, and a lobed rock took nothing in.
+    A light rock lit from one side darkens towards its far rim, below the
+    ground's level; its lit part then steps against the ground and against
+    that rim alike, and its outline, supported all round, may leave the
+    shaded side out. Dark beside the outline is that side (or the cast
+    shadow beyond it): the other candidates are worth judging.
     """
+    rock = found.rocks[0]
+    if found.polarity == "light" and rock.darker_outside >= SHADE_BESIDE:
+        return False
     if rock.score >= FAST_SCORE:
         return True
     if len(rock.evidence) != len(WEIGHTS):
@@ -516,6 +526,14 @@ def _fast_outline(rock: RockMask) -> bool:
     *support, _ = rock.evidence
     # The opening that tells lobes costs more than the score: it comes last.
     return outline_score(OutlineEvidence(*support, solidity=1.0)) >= FAST_SCORE and lobed(rock.mask)
+
+
+#: Share of the band just outside a light rock's first outline, darker than
+#: the ground (``score.OutlineEvidence.darker_outside``), from which it takes
+#: no fast path. On the development part, every light rock's fast-path
+#: outline had 12-36% (10 of 14 wrong, IoU < 0.9); the rocks rendered from
+#: the default library and the coins of ``coins()`` at most 5%.
+SHADE_BESIDE = 0.1
 
 
 def _unrivalled(detection: _Detection) -> bool:

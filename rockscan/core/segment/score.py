@@ -50,6 +50,12 @@ class OutlineEvidence:
         Share of the outline that runs along the photo's frame.
     solidity : float
         Area over the area of the convex hull.
+    darker_outside : float
+        Share of a band just outside the outline (three band widths wide)
+        darker than the ground by at least ``DARKER_LEVEL`` of the rock's
+        step: something against the outline, beyond the ground from the rock
+        (for a light rock, its own shaded side or its cast shadow). Not
+        scored: the fast path reads it (``rockscan.core.segment``).
     """
 
     support: float
@@ -58,9 +64,16 @@ class OutlineEvidence:
     noise: float
     frame: float
     solidity: float
+    darker_outside: float = 0.0
 
     def as_array(self) -> NDArray[np.float64]:
+        """The scored measurements, in the order of ``WEIGHTS``."""
         return np.array([self.support, self.weak, self.outside, self.noise, self.frame, self.solidity])
+
+
+#: Level (0 the ground's, 1 the rock's) below which a pixel beside an
+#: outline lies beyond the ground from the rock (``darker_outside``).
+DARKER_LEVEL = -0.25
 
 
 #: Logistic weights of the evidence (support, weak, outside, noise, frame,
@@ -146,6 +159,8 @@ def outline_evidence(
         support = float(np.clip(step, 0.0, 1.0).mean())
         weak = float((step < 1.0 / 3.0).mean())
         outside = float(np.clip(outside_mean, 0.0, 1.0).mean())
+    beside = (outside_dist > 0) & (outside_dist <= 3 * width)
+    darker_outside = float(np.count_nonzero(beside & (lv < DARKER_LEVEL))) / max(np.count_nonzero(beside), 1)
     ring = (outside_dist > reach) & (outside_dist <= 3 * reach)
     ring = ring[pad:-pad, pad:-pad]
     values = level[ring] if ring.sum() >= 8 else level[~mask]
@@ -156,4 +171,4 @@ def outline_evidence(
     contours, _ = cv2.findContours(m8, cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_SIMPLE)
     hull_area = max(cv2.contourArea(cv2.convexHull(np.concatenate(contours))), 1.0)
     solidity = float(min(1.0, area / hull_area))
-    return OutlineEvidence(support, weak, outside, min(noise, 2.0), frame, solidity)
+    return OutlineEvidence(support, weak, outside, min(noise, 2.0), frame, solidity, darker_outside)

@@ -102,7 +102,10 @@ def _scored(
     level = ((flat - np.float32(ground)) / np.float32(step)).astype(np.float32)
     evidence = outline_evidence(level, mask, sides)
     return dataclasses.replace(
-        rock, score=outline_score(evidence), evidence=tuple(float(v) for v in evidence.as_array())
+        rock,
+        score=outline_score(evidence),
+        evidence=tuple(float(v) for v in evidence.as_array()),
+        darker_outside=evidence.darker_outside,
     )
 
 

@@ -141,6 +141,9 @@ class RockMask:
     evidence : tuple of float
         The measurements the score is computed from (support, weak, outside,
         noise, frame, solidity).
+    darker_outside : float
+        Share of a band just outside the outline darker than the ground, away
+        from the rock's level (``rockscan.core.segment.score.OutlineEvidence``).
     """
 
     mask: NDArray[np.bool_]
@@ -148,6 +151,7 @@ class RockMask:
     origin_rowcol: tuple[int, int]
     score: float = 1.0
     evidence: tuple[float, ...] = ()
+    darker_outside: float = 0.0
 
     @property
     def area(self) -> int:
