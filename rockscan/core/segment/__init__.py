@@ -82,7 +82,9 @@ Steps (see :func:`segment`):
    development part chooses among them (``rockscan.core.segment.choose``).
    An easy photo stops at its first outline (the fast path): that of the
    region that stood out above all others, scoring at least ``FAST_SCORE``
-   (an outline lobed all round, a star's, without its solidity counted).
+   (an outline lobed all round, a star's, without its solidity counted),
+   and for a rock lighter than its ground, with little darker than the
+   ground just outside it (``SHADE_BESIDE``: a shaded side it left out).
    Otherwise the detection's own outlines are judged first, by trees
    fitted on such pools; when one is sure (probability
    ``FAST_PROBABILITY``) it stands, and the other cues' outlines, GrabCut
