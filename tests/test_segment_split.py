@@ -277,3 +277,21 @@ def test_label_maxima_is_the_largest_value_under_each_label_and_at_least_zero(co
     for k in range(count):
         under = values[labels == k]
         assert got[k] == max(0.0, float(under.max()) if under.size else 0.0)
+
+
+@settings(max_examples=60, deadline=None)
+@given(
+    shape=st.tuples(st.integers(1, 15), st.integers(1, 15)),
+    share=st.floats(0.0, 0.3),
+    seed=st.integers(0, 2**16),
+)
+def test_bounding_box_holds_every_pixel_of_the_mask_and_no_more(shape, share, seed):
+    from rockscan.core.segment.stats import bounding_box
+
+    mask = np.random.default_rng(seed).random(shape) < share
+    box = bounding_box(mask)
+    if not mask.any():
+        assert box is None
+        return
+    ys, xs = np.nonzero(mask)
+    assert box == (ys.min(), ys.max() + 1, xs.min(), xs.max() + 1)

@@ -311,9 +311,9 @@ def _best_regions(
             if total > 0:
                 # The main rock's whole region, before it was split: texture on a
                 # rock can look like a dip between two.
-                ys, xs = np.nonzero(regions[main])
-                whole = labels == labels[ys[0], xs[0]]
-                if whole.sum() > 1.2 * ys.size:
+                # Its component is the label under its first pixel.
+                whole = labels == labels.flat[int(np.argmax(regions[main]))]
+                if whole.sum() > 1.2 * np.count_nonzero(regions[main]):
                     alternatives.append((total, whole, polarity))
         if total <= 0 or (best is not None and total <= best[0]):
             continue

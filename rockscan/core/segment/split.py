@@ -28,7 +28,7 @@ from collections.abc import Callable
 import numpy as np
 from numpy.typing import NDArray
 
-from rockscan.core.segment.stats import label_maxima
+from rockscan.core.segment.stats import bounding_box, label_maxima
 
 __all__ = [
     "label_image",
@@ -81,10 +81,9 @@ def split_rocks(
         One mask per rock, together covering the region; the region itself
         when it is one rock.
     """
-    ys, xs = np.nonzero(region)
-    if ys.size < 2 * min_area:
+    if np.count_nonzero(region) < 2 * min_area:
         return [region]
-    r0, r1, c0, c1 = ys.min(), ys.max() + 1, xs.min(), xs.max() + 1
+    r0, r1, c0, c1 = bounding_box(region)
     # A pixel of ground all round keeps the window's edge out of the flooding.
     r0, c0 = max(0, r0 - 1), max(0, c0 - 1)
     r1, c1 = min(region.shape[0], r1 + 1), min(region.shape[1], c1 + 1)

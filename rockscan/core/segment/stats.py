@@ -1,11 +1,11 @@
-"""Robust statistics of pixel samples, shared by the segmentation's steps."""
+"""Robust statistics of pixel samples and measures of masks, shared by the segmentation's steps."""
 
 from __future__ import annotations
 
 import numpy as np
 from numpy.typing import NDArray
 
-__all__ = ["label_maxima", "robust_spread"]
+__all__ = ["bounding_box", "label_maxima", "robust_spread"]
 
 #: The median absolute deviation of a normal distribution times this is its standard deviation.
 MAD_TO_SIGMA = 1.4826
@@ -34,3 +34,16 @@ def label_maxima(
         return np.zeros(count)
     found = ndimage.maximum(values, labels, np.arange(count))
     return np.maximum(np.asarray(found, dtype=np.float64), 0.0)
+
+
+def bounding_box(mask: NDArray[np.bool_]) -> tuple[int, int, int, int] | None:
+    """Rows ``r0:r1`` and columns ``c0:c1`` that hold every pixel of a mask, or None if it is empty.
+
+    The same as the extremes of ``np.nonzero``, from the rows' and columns'
+    projections: a fraction of the cost on a frame-sized mask.
+    """
+    rows = np.flatnonzero(mask.any(axis=1))
+    if rows.size == 0:
+        return None
+    cols = np.flatnonzero(mask.any(axis=0))
+    return int(rows[0]), int(rows[-1]) + 1, int(cols[0]), int(cols[-1]) + 1

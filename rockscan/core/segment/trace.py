@@ -14,6 +14,7 @@ from rockscan.core.errors import NoRockFoundError
 from rockscan.core.segment.channels import _Channel, _unit
 from rockscan.core.segment.detect import _Detection, _flatten, _smooth, _window_of
 from rockscan.core.segment.score import outline_evidence, outline_score
+from rockscan.core.segment.stats import bounding_box
 from rockscan.core.segment.types import RockMask, Segmentation, SegmentConfig
 
 #: Smoothing of the hue before it joins the brightness, in working pixels.
@@ -39,9 +40,9 @@ def _outline_rock(
     # Working pixel -> nearest detection pixel, along each axis.
     to_row = np.minimum(((np.arange(rows) + 0.5) / up[0]).astype(np.int64), region.shape[0] - 1)
     to_col = np.minimum(((np.arange(cols) + 0.5) / up[1]).astype(np.int64), region.shape[1] - 1)
-    ys, xs = np.nonzero(region)
-    r0, r1 = math.floor(ys.min() * up[0]), min(rows, math.ceil((ys.max() + 1) * up[0]))
-    c0, c1 = math.floor(xs.min() * up[1]), min(cols, math.ceil((xs.max() + 1) * up[1]))
+    top, bottom, left, right = bounding_box(region)
+    r0, r1 = math.floor(top * up[0]), min(rows, math.ceil(bottom * up[0]))
+    c0, c1 = math.floor(left * up[1]), min(cols, math.ceil(right * up[1]))
     detected = region[to_row[r0:r1, None], to_col[None, c0:c1]]
     estimate, origin = detected, (r0, c0)
     rock, reaches_edge = None, False
