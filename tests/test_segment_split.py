@@ -295,3 +295,43 @@ def test_bounding_box_holds_every_pixel_of_the_mask_and_no_more(shape, share, se
         return
     ys, xs = np.nonzero(mask)
     assert box == (ys.min(), ys.max() + 1, xs.min(), xs.max() + 1)
+
+
+def _disc_on_ramp(ground_left: float, ground_right: float, rock: float = 0.5):
+    """A disc of one level on a ground ramping from left to right, its core and the ring round it."""
+    from rockscan.core.segment.trace import _core_and_ring
+
+    shape = (120, 120)
+    cover = coverage(shape, (60, 60), (30, 30))
+    ramp = np.linspace(ground_left, ground_right, shape[1], dtype=np.float32)[None, :].repeat(shape[0], 0)
+    noise = np.random.default_rng(0).normal(0.0, 0.01, shape)
+    flat = (ramp * (1 - cover) + rock * cover + noise).astype(np.float32)
+    mask = cover > 0.5
+    inside, ring = _core_and_ring(mask.astype(np.uint8), 30.0)
+    return flat, mask, inside, ring
+
+
+def test_a_ground_lighter_on_one_side_and_darker_on_the_other_keeps_the_step():
+    from rockscan.core.segment.trace import _two_sided_ground, _two_sided_level
+
+    flat, mask, inside, ring = _disc_on_ramp(0.1, 0.9)
+    rock = float(np.median(flat[inside]))
+    ground = _two_sided_ground(flat, ring, mask, rock)
+    assert ground is not None
+    level = _two_sided_level(flat, ground, rock)
+    sides = (False,) * 4
+    # One median of the ring lies at the rock's level: the step is lost.
+    one = float(np.median(flat[ring]))
+    single = outline_evidence(((flat - one) / (rock - one)).astype(np.float32), mask, sides)
+    two = outline_evidence(level, mask, sides)
+    assert np.median(level[inside]) == pytest.approx(1.0, abs=0.05)
+    assert two.support > 0.7 > single.support
+    assert outline_score(two) > CONFIDENT_SCORE > outline_score(single)
+
+
+@pytest.mark.parametrize(("left", "right"), [(0.1, 0.3), (0.2, 0.2), (0.7, 0.95)])
+def test_a_ground_on_one_side_of_the_rock_is_read_as_one_level(left, right):
+    from rockscan.core.segment.trace import _two_sided_ground
+
+    flat, mask, inside, ring = _disc_on_ramp(left, right)
+    assert _two_sided_ground(flat, ring, mask, float(np.median(flat[inside]))) is None

@@ -14,7 +14,7 @@ from rockscan.core.errors import NoRockFoundError
 from rockscan.core.segment.channels import _Channel, _unit
 from rockscan.core.segment.detect import _Detection, _flatten, _smooth, _window_of
 from rockscan.core.segment.score import outline_evidence, outline_score
-from rockscan.core.segment.stats import bounding_box
+from rockscan.core.segment.stats import bounding_box, robust_spread
 from rockscan.core.segment.types import RockMask, Segmentation, SegmentConfig
 
 #: Smoothing of the hue before it joins the brightness, in working pixels.
@@ -76,7 +76,9 @@ def _scored(
 
     The evidence is read on the flattened channel the rock was found in,
     as a level from the ground's (0, the median of a ring around the
-    outline) to the rock's (1, the median inside).
+    outline) to the rock's (1, the median inside). Where the ground is
+    lighter than the rock on one side and darker on another, its level is
+    read sector by sector round the outline (:func:`_two_sided_ground`).
     """
 
     rows, cols = work.shape[:2]
@@ -95,12 +97,17 @@ def _scored(
     mask8 = mask.astype(np.uint8)
     inside, ring = _core_and_ring(mask8, radius)
     core = flat[inside] if inside.sum() >= 4 else flat[mask]
-    ground = float(np.median(flat[ring])) if ring.sum() >= 8 else 0.0
-    step = float(np.median(core)) - ground
-    if not math.isfinite(step) or abs(step) < 1e-6:
-        return dataclasses.replace(rock, score=0.0, evidence=())
+    rock_level = float(np.median(core))
     sides = (r0 == 0, r1 == rows, c0 == 0, c1 == cols)
-    level = ((flat - np.float32(ground)) / np.float32(step)).astype(np.float32)
+    two_sided = _two_sided_ground(flat, ring, mask, rock_level)
+    if two_sided is not None:
+        level = _two_sided_level(flat, two_sided, rock_level)
+    else:
+        ground = float(np.median(flat[ring])) if ring.sum() >= 8 else 0.0
+        step = rock_level - ground
+        if not math.isfinite(step) or abs(step) < 1e-6:
+            return dataclasses.replace(rock, score=0.0, evidence=())
+        level = ((flat - np.float32(ground)) / np.float32(step)).astype(np.float32)
     evidence = outline_evidence(level, mask, sides)
     return dataclasses.replace(
         rock,
@@ -108,6 +115,59 @@ def _scored(
         evidence=tuple(float(v) for v in evidence.as_array()),
         darker_outside=evidence.darker_outside,
     )
+
+
+#: Sectors round an outline in which the ground's level is read apart, when
+#: the ground is lighter than the rock on one side and darker on the other.
+SECTORS = 8
+#: How far, in robust spreads of the ground within its sectors, the ground
+#: must lie above the rock on one side and below it on another to be two-sided.
+TWO_SIDED = 3.0
+
+
+def _two_sided_ground(
+    flat: NDArray[np.float32], ring: NDArray[np.bool_], mask: NDArray[np.bool_], rock_level: float
+) -> NDArray[np.float32] | None:
+    """The ground's level at every pixel, read sector by sector in the ring round
+    an outline, when the ground is lighter than the rock on one side and darker on
+    another; None for a ground on one side of the rock's level.
+
+    One median of the whole ring lies near the rock's own level there: the
+    step across the outline would be lost.
+    """
+    ys, xs = np.nonzero(ring)
+    if ys.size < 8 * SECTORS:
+        return None
+    my, mx = np.nonzero(mask)
+    centre = (float(my.mean()), float(mx.mean()))
+    turns = (np.arctan2(ys - centre[0], xs - centre[1]) + math.pi) / (2.0 * math.pi)
+    sector = np.minimum((turns * SECTORS).astype(np.int64), SECTORS - 1)
+    values = flat[ys, xs]
+    counts = np.bincount(sector, minlength=SECTORS)
+    if counts.min() < 8:
+        return None
+    levels = np.array([np.median(values[sector == k]) for k in range(SECTORS)])
+    spread = robust_spread(values - levels[sector], 0.0)
+    if min(levels.max() - rock_level, rock_level - levels.min()) < TWO_SIDED * max(spread, 1e-6):
+        return None
+    # Between sector centres the level is interpolated along the angle.
+    yy, xx = np.mgrid[: flat.shape[0], : flat.shape[1]]
+    at = (np.arctan2(yy - centre[0], xx - centre[1]) + math.pi) / (2.0 * math.pi) * SECTORS - 0.5
+    k = np.floor(at).astype(np.int64)
+    t = (at - k).astype(np.float32)
+    ground = levels[k % SECTORS] * (1.0 - t) + levels[(k + 1) % SECTORS] * t
+    return ground.astype(np.float32)
+
+
+def _two_sided_level(
+    flat: NDArray[np.float32], ground: NDArray[np.float32], rock_level: float
+) -> NDArray[np.float32]:
+    """The level from the ground's (0, as read round the outline) to the rock's (1),
+    the step taken at least a quarter of the largest, with its own sign on each side."""
+    step = np.float32(rock_level) - ground
+    least = np.float32(0.25) * float(np.abs(step).max())
+    step = np.where(step >= 0, np.maximum(step, least), np.minimum(step, -least))
+    return ((flat - ground) / step).astype(np.float32)
 
 
 #: An outline's core lies over this share of the rock's equivalent radius
