@@ -135,14 +135,18 @@ def _two_sided_ground(
     One median of the whole ring lies near the rock's own level there: the
     step across the outline would be lost.
     """
-    ys, xs = np.nonzero(ring)
-    if ys.size < 8 * SECTORS:
+    values = flat[ring]
+    # A sector's median beyond the rock's level has at least 4 of its 8 or more pixels there.
+    if (
+        values.size < 8 * SECTORS
+        or min(np.count_nonzero(values > rock_level), np.count_nonzero(values < rock_level)) < 4
+    ):
         return None
+    ys, xs = np.nonzero(ring)
     my, mx = np.nonzero(mask)
     centre = (float(my.mean()), float(mx.mean()))
     turns = (np.arctan2(ys - centre[0], xs - centre[1]) + math.pi) / (2.0 * math.pi)
     sector = np.minimum((turns * SECTORS).astype(np.int64), SECTORS - 1)
-    values = flat[ys, xs]
     counts = np.bincount(sector, minlength=SECTORS)
     if counts.min() < 8:
         return None
