@@ -130,6 +130,7 @@ from rockscan.core.segment.pebbles import lobed, pebbles_off
 from rockscan.core.segment.score import WEIGHTS, OutlineEvidence, outline_score
 from rockscan.core.segment.shadow import shadow_left_out, shadow_off
 from rockscan.core.segment.split import largest_part, opened, split_blobs, split_necks, territories
+from rockscan.core.segment.stats import bounding_box
 from rockscan.core.segment.trace import (
     RING,
     RING_PIXELS,
@@ -718,9 +719,9 @@ def _assemble(
 
 def _cropped(rock: RockMask) -> RockMask:
     """The rock in the smallest window that holds it, with a pixel to spare."""
-    ys, xs = np.nonzero(rock.mask)
-    r0, r1 = max(0, ys.min() - 1), min(rock.mask.shape[0], ys.max() + 2)
-    c0, c1 = max(0, xs.min() - 1), min(rock.mask.shape[1], xs.max() + 2)
+    top, bottom, left, right = bounding_box(rock.mask)
+    r0, r1 = max(0, top - 1), min(rock.mask.shape[0], bottom + 1)
+    c0, c1 = max(0, left - 1), min(rock.mask.shape[1], right + 1)
     o0, o1 = rock.origin_rowcol
     return dataclasses.replace(
         rock,

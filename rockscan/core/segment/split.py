@@ -264,8 +264,8 @@ def rejoined(parts: list[NDArray[np.bool_]], convex: float = CONVEX_CELL) -> lis
             pair = (tokens[a - 1], tokens[b - 1])
             if pair not in solidity:
                 union = parts[a - 1] | parts[b - 1]
-                ys, xs = np.nonzero(union)
-                solidity[pair] = _solidity(union[ys.min() : ys.max() + 1, xs.min() : xs.max() + 1])
+                r0, r1, c0, c1 = bounding_box(union)
+                solidity[pair] = _solidity(union[r0:r1, c0:c1])
             if solidity[pair] >= convex and (best is None or solidity[pair] > best[0]):
                 best = (solidity[pair], a, b)
         if best is None:
