@@ -147,3 +147,14 @@ def test_a_real_coin_with_nothing_dark_beside_it_keeps_the_fast_path():
     found = _candidate_pool(crop, SegmentConfig())
     assert isinstance(found, Segmentation)
     assert found.polarity == "light" and found.rocks[0].darker_outside < 0.05
+
+
+def test_a_light_rocks_dark_rim_is_in_its_outline(monkeypatch):
+    # Development photo "vignette-blur-jpeg" 30: a light rock whose rim,
+    # darker than the ground, the half-way outline left out (IoU 0.885);
+    # moved out to the rim's darkest line, it is outlined at 0.92.
+    import rockscan.core.segment as segmentation
+
+    assert judged("vignette-blur-jpeg", 30).iou >= 0.91
+    monkeypatch.setattr(segmentation, "rim_on", lambda gray, mask: mask)
+    assert judged("vignette-blur-jpeg", 30).iou < 0.9

@@ -101,6 +101,12 @@ Steps (see :func:`segment`):
    outline (from the rock's shaded rim to the flat, darkened ground of the
    shadow) on one smooth arc away from the rock's lit side, what lies beyond
    that rise is cut off (``rockscan.core.segment.shadow``).
+10. **Rim on.** A light domed rock darkens towards its rim, below the
+    ground's level, and the half-way threshold leaves that rim out; where,
+    along rays from the rock's centre, the profile falls past the outline
+    into a narrow valley darker than the ground and rises again to it, the
+    outline moves out to the valley's bottom, the rock's occluding edge
+    (``rockscan.core.segment.rim``).
 
 Known limits: a shadow whose edge with the rock's shaded side the photo does
 not show (the two as dark) stays with a dark rock; a pebble or a patch of
@@ -127,6 +133,7 @@ from rockscan.core.segment.channels import _LUMA, _at_scale, _channels, _check_p
 from rockscan.core.segment.choose import choose_ranked
 from rockscan.core.segment.detect import _detect, _Detection, _luminance_polarity
 from rockscan.core.segment.pebbles import lobed, pebbles_off
+from rockscan.core.segment.rim import rim_on
 from rockscan.core.segment.score import WEIGHTS, OutlineEvidence, outline_score
 from rockscan.core.segment.shadow import shadow_left_out, shadow_off
 from rockscan.core.segment.split import largest_part, opened, split_blobs, split_necks, territories
@@ -201,7 +208,7 @@ def segment(
     found = _main_rock(pixels, config, all_rocks=all_rocks)
     if all_rocks or found.channel == "alpha":
         return found
-    return _shadow_off(_pebbles_off(found), pixels)
+    return _rim_on(_shadow_off(_pebbles_off(found), pixels), pixels)
 
 
 def _main_rock(pixels: NDArray[np.generic], config: SegmentConfig, *, all_rocks: bool) -> Segmentation:
@@ -283,6 +290,32 @@ def _shadow_off(found: Segmentation, pixels: NDArray[np.generic]) -> Segmentatio
         return found
     (r0, _, c0, _), (o0, o1), (h, w) = window, rock.origin_rowcol, rock.mask.shape
     return _main_cut(found, kept[o0 - r0 : o0 - r0 + h, o1 - c0 : o1 - c0 + w])
+
+
+def _rim_on(found: Segmentation, pixels: NDArray[np.generic]) -> Segmentation:
+    """The main rock grown out over a dark rim its outline left out (``rim.rim_on``).
+
+    Read, as the shadow is, on the photo's log brightness around the rock on
+    the working grid. The rock is the same object, a little larger: it keeps
+    its score.
+    """
+    rock = found.rocks[0]
+    window, gray = _rock_window(found, pixels)
+    mask = _placed(rock, window, found.scale_rowcol)
+    if mask is None:
+        return found
+    grown = rim_on(gray, mask)
+    if grown is mask:
+        return found
+    (r0, _, c0, _), (o0, o1), (h, w) = window, rock.origin_rowcol, rock.mask.shape
+    coverage = np.zeros(mask.shape, np.float32)
+    coverage[o0 - r0 : o0 - r0 + h, o1 - c0 : o1 - c0 + w] = rock.coverage
+    coverage[grown & ~mask] = 1.0
+    main = _cropped(dataclasses.replace(rock, mask=grown, coverage=coverage, origin_rowcol=(r0, c0)))
+    labels = found.labels.copy()
+    view = labels[r0 : r0 + grown.shape[0], c0 : c0 + grown.shape[1]]
+    view[grown & (view == 0)] = 1
+    return dataclasses.replace(found, labels=labels, rocks=(main, *found.rocks[1:]))
 
 
 def _rock_window(

@@ -123,30 +123,18 @@ def shadow_off(gray: NDArray[np.floating], mask: NDArray[np.bool_]) -> NDArray[n
     """
     import cv2
 
-    mask8 = mask.astype(np.uint8)
-    moments = cv2.moments(mask8, binaryImage=True)
-    area = moments["m00"]
-    if area < MIN_AREA:
+    region = measured_region(gray, mask, MIN_AREA)
+    if region is None:
         return mask
-    levels = _levels(gray, mask8, math.sqrt(area / math.pi))
-    if levels is None:
-        return mask
-    rock, ground, noise = levels
+    mask8, centre, area, (rock, ground, noise) = region
     step = ground - rock
     # A light rock's shadow is darker than the ground: it never joins the rock.
     if step <= 0:
         return mask
-    centre = (moments["m01"] / area, moments["m10"] / area)
-    x, y, w, h = cv2.boundingRect(mask8)
-    corners = np.array([[y, x], [y, x + w], [y + h, x], [y + h, x + w]], np.float64)
-    reach = float(np.hypot(*(corners - centre).T).max()) + 2.0 * HALF_RISE + 2.0
-    angles = np.arange(RAYS) * (2.0 * math.pi / RAYS)
-    radii = np.arange(0.0, reach, SPACING)
-    map_x = (centre[1] + np.outer(np.cos(angles), radii)).astype(np.float32)
-    map_y = (centre[0] + np.outer(np.sin(angles), radii)).astype(np.float32)
-    inside = cv2.remap(mask8, map_x, map_y, cv2.INTER_NEAREST, borderValue=0) > 0
-    smooth = cv2.GaussianBlur(gray.astype(np.float32), (0, 0), 1.0)
-    profiles = cv2.remap(smooth, map_x, map_y, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
+    angles, radii, inside, profiles = ray_profiles(
+        gray, mask8, centre, 2.0 * HALF_RISE + 2.0, RAYS, SPACING, 1.0
+    )
+    reach = float(radii[-1]) + SPACING
     edges = _inner_edges(profiles, inside, rock, ground, step, noise)
     if edges is None:
         return mask
@@ -168,6 +156,60 @@ def shadow_off(gray: NDArray[np.floating], mask: NDArray[np.bool_]) -> NDArray[n
     if _perimeter(kept) > LONGER * _perimeter(mask):
         return mask
     return kept
+
+
+def measured_region(
+    gray: NDArray[np.floating], mask: NDArray[np.bool_], min_area: int
+) -> tuple[NDArray[np.uint8], tuple[float, float], float, tuple[float, float, float]] | None:
+    """A region as 0/1 bytes, its centre (row, col), its area and its levels
+    (the rock's, the ground's and the ground's spread, ``_levels``); None
+    when it is smaller than ``min_area`` pixels or has too little core or ring."""
+    import cv2
+
+    mask8 = mask.astype(np.uint8)
+    moments = cv2.moments(mask8, binaryImage=True)
+    area = moments["m00"]
+    if area < min_area:
+        return None
+    levels = _levels(gray, mask8, math.sqrt(area / math.pi))
+    if levels is None:
+        return None
+    return mask8, (moments["m01"] / area, moments["m10"] / area), area, levels
+
+
+def ray_profiles(
+    gray: NDArray[np.floating],
+    mask8: NDArray[np.uint8],
+    centre: tuple[float, float],
+    beyond: float,
+    rays: int,
+    spacing: float,
+    blur: float,
+) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.bool_], NDArray[np.float32]]:
+    """Profiles of ``gray`` and of a region along rays from ``centre``.
+
+    The rays (``rays`` of them, evenly turned) reach ``beyond`` pixels past the
+    farthest corner of the region's bounding box, sampled every ``spacing``
+    pixels; ``gray`` is smoothed by a Gaussian of ``blur`` pixels first (0:
+    not at all). Returns the rays' angles, the samples' distances from the
+    centre, whether each sample is in the region, and the profiles (the
+    window's edge value repeated past it).
+    """
+    import cv2
+
+    x, y, w, h = cv2.boundingRect(mask8)
+    corners = np.array([[y, x], [y, x + w], [y + h, x], [y + h, x + w]], np.float64)
+    reach = float(np.hypot(*(corners - centre).T).max()) + beyond
+    angles = np.arange(rays) * (2.0 * math.pi / rays)
+    radii = np.arange(0.0, reach, spacing)
+    map_x = (centre[1] + np.outer(np.cos(angles), radii)).astype(np.float32)
+    map_y = (centre[0] + np.outer(np.sin(angles), radii)).astype(np.float32)
+    inside = cv2.remap(mask8, map_x, map_y, cv2.INTER_NEAREST, borderValue=0) > 0
+    image = gray.astype(np.float32)
+    if blur > 0:
+        image = cv2.GaussianBlur(image, (0, 0), blur)
+    profiles = cv2.remap(image, map_x, map_y, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
+    return angles, radii, inside, profiles
 
 
 def shadow_left_out(
