@@ -156,5 +156,5 @@ def test_a_light_rocks_dark_rim_is_in_its_outline(monkeypatch):
     import rockscan.core.segment as segmentation
 
     assert judged("vignette-blur-jpeg", 30).iou >= 0.91
-    monkeypatch.setattr(segmentation, "rim_on", lambda gray, mask: mask)
+    monkeypatch.setattr(segmentation, "rim_on", lambda gray, mask, region=None: mask)
     assert judged("vignette-blur-jpeg", 30).iou < 0.9

@@ -135,7 +135,8 @@ from rockscan.core.segment.detect import _detect, _Detection, _luminance_polarit
 from rockscan.core.segment.pebbles import lobed, pebbles_off
 from rockscan.core.segment.rim import rim_on
 from rockscan.core.segment.score import WEIGHTS, OutlineEvidence, outline_score
-from rockscan.core.segment.shadow import shadow_left_out, shadow_off
+from rockscan.core.segment.shadow import MIN_AREA as SHADOW_MIN_AREA
+from rockscan.core.segment.shadow import measured_region, shadow_left_out, shadow_off
 from rockscan.core.segment.split import largest_part, opened, split_blobs, split_necks, territories
 from rockscan.core.segment.stats import bounding_box
 from rockscan.core.segment.trace import (
@@ -208,7 +209,7 @@ def segment(
     found = _main_rock(pixels, config, all_rocks=all_rocks)
     if all_rocks or found.channel == "alpha":
         return found
-    return _rim_on(_shadow_off(_pebbles_off(found), pixels), pixels)
+    return _edges(_pebbles_off(found), pixels)
 
 
 def _main_rock(pixels: NDArray[np.generic], config: SegmentConfig, *, all_rocks: bool) -> Segmentation:
@@ -273,38 +274,32 @@ def _pebbles_off(found: Segmentation) -> Segmentation:
     return _main_cut(found, pebbles_off(rock.mask))
 
 
-def _shadow_off(found: Segmentation, pixels: NDArray[np.generic]) -> Segmentation:
-    """The main rock with a cast shadow that joined it taken off (``shadow.shadow_off``).
+def _edges(found: Segmentation, pixels: NDArray[np.generic]) -> Segmentation:
+    """The main rock with a cast shadow that joined it taken off
+    (``shadow.shadow_off``), then a dark rim its outline left out taken in
+    (``rim.rim_on``).
 
-    The shadow is judged on the photo's log brightness around the rock,
-    brought to the working grid the rock was outlined on.
+    Both are judged on the photo's log brightness around the rock, brought
+    to the working grid the rock was outlined on, and on the rock's and the
+    ground's levels, read once for both. A rock grown by its rim keeps its score.
     """
+    rock = found.rocks[0]
+    window, gray = _rock_window(found, pixels)
+    mask = _placed(rock, window, found.scale_rowcol)
+    region = measured_region(gray, mask, SHADOW_MIN_AREA)
+    if region is None:
+        return found
     # A light rock's shadow is darker than the ground: it never joins the rock.
-    if found.channel == "luminance" and found.polarity == "light":
-        return found
-    rock = found.rocks[0]
-    window, gray = _rock_window(found, pixels)
-    mask = _placed(rock, window, found.scale_rowcol)
-    kept = shadow_off(gray, mask)
-    if kept is mask:
-        return found
-    (r0, _, c0, _), (o0, o1), (h, w) = window, rock.origin_rowcol, rock.mask.shape
-    return _main_cut(found, kept[o0 - r0 : o0 - r0 + h, o1 - c0 : o1 - c0 + w])
-
-
-def _rim_on(found: Segmentation, pixels: NDArray[np.generic]) -> Segmentation:
-    """The main rock grown out over a dark rim its outline left out (``rim.rim_on``).
-
-    Read, as the shadow is, on the photo's log brightness around the rock on
-    the working grid. The rock is the same object, a little larger: it keeps
-    its score.
-    """
-    rock = found.rocks[0]
-    window, gray = _rock_window(found, pixels)
-    mask = _placed(rock, window, found.scale_rowcol)
-    if mask is None:
-        return found
-    grown = rim_on(gray, mask)
+    if not (found.channel == "luminance" and found.polarity == "light"):
+        kept = shadow_off(gray, mask, region)
+        if kept is not mask:
+            (r0, _, c0, _), (o0, o1), (h, w) = window, rock.origin_rowcol, rock.mask.shape
+            found = _main_cut(found, kept[o0 - r0 : o0 - r0 + h, o1 - c0 : o1 - c0 + w])
+            rock = found.rocks[0]
+            window, gray = _rock_window(found, pixels)
+            mask = _placed(rock, window, found.scale_rowcol)
+            region = None
+    grown = rim_on(gray, mask, region)
     if grown is mask:
         return found
     (r0, _, c0, _), (o0, o1), (h, w) = window, rock.origin_rowcol, rock.mask.shape

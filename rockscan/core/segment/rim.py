@@ -26,7 +26,7 @@ import math
 import numpy as np
 from numpy.typing import NDArray
 
-from rockscan.core.segment.shadow import measured_region, ray_profiles
+from rockscan.core.segment.shadow import MIN_AREA, Region, measured_region, ray_profiles
 
 __all__ = ["rim_on"]
 
@@ -51,11 +51,11 @@ SPACING = 0.5
 #: Rays whose shift is the median of this many neighbours: a lone ray that
 #: finds a valley in the ground's texture moves nothing.
 SMOOTH_RAYS = 7
-#: Regions smaller than this (pixels) are left as they are.
-MIN_AREA = 50
 
 
-def rim_on(gray: NDArray[np.floating], mask: NDArray[np.bool_]) -> NDArray[np.bool_]:
+def rim_on(
+    gray: NDArray[np.floating], mask: NDArray[np.bool_], region: Region | None = None
+) -> NDArray[np.bool_]:
     """A light rock's mask grown out to the bottom of its dark rim (module docstring).
 
     Parameters
@@ -65,6 +65,9 @@ def rim_on(gray: NDArray[np.floating], mask: NDArray[np.bool_]) -> NDArray[np.bo
         with a margin of at least a third of the rock's radius.
     mask : (rows, cols) ndarray of bool
         The rock's region (one piece, holes filled).
+    region : Region, optional
+        ``shadow.measured_region(gray, mask, shadow.MIN_AREA)``, when already
+        measured.
 
     Returns
     -------
@@ -75,7 +78,8 @@ def rim_on(gray: NDArray[np.floating], mask: NDArray[np.bool_]) -> NDArray[np.bo
     """
     from scipy import ndimage
 
-    region = measured_region(gray, mask, MIN_AREA)
+    if region is None:
+        region = measured_region(gray, mask, MIN_AREA)
     if region is None:
         return mask
     mask8, centre, area, (rock, ground, noise) = region

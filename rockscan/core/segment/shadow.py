@@ -51,7 +51,7 @@ from rockscan.core.segment.split import largest_part
 from rockscan.core.segment.stats import robust_spread
 from rockscan.core.segment.trace import _core_and_ring, _fill_holes, _sample_at
 
-__all__ = ["shadow_left_out", "shadow_off"]
+__all__ = ["Region", "measured_region", "ray_profiles", "shadow_left_out", "shadow_off"]
 
 #: Rays cast from the rock's centre.
 RAYS = 256
@@ -104,7 +104,9 @@ DARKER = 0.25
 SKY = 0.2
 
 
-def shadow_off(gray: NDArray[np.floating], mask: NDArray[np.bool_]) -> NDArray[np.bool_]:
+def shadow_off(
+    gray: NDArray[np.floating], mask: NDArray[np.bool_], region: Region | None = None
+) -> NDArray[np.bool_]:
     """The rock's mask with a cast shadow that joined it taken off (module docstring).
 
     Parameters
@@ -114,6 +116,8 @@ def shadow_off(gray: NDArray[np.floating], mask: NDArray[np.bool_]) -> NDArray[n
         with a margin of at least a third of the rock's radius.
     mask : (rows, cols) ndarray of bool
         The rock's region (one piece, holes filled).
+    region : Region, optional
+        ``measured_region(gray, mask, MIN_AREA)``, when already measured.
 
     Returns
     -------
@@ -123,7 +127,8 @@ def shadow_off(gray: NDArray[np.floating], mask: NDArray[np.bool_]) -> NDArray[n
     """
     import cv2
 
-    region = measured_region(gray, mask, MIN_AREA)
+    if region is None:
+        region = measured_region(gray, mask, MIN_AREA)
     if region is None:
         return mask
     mask8, centre, area, (rock, ground, noise) = region
@@ -158,9 +163,12 @@ def shadow_off(gray: NDArray[np.floating], mask: NDArray[np.bool_]) -> NDArray[n
     return kept
 
 
-def measured_region(
-    gray: NDArray[np.floating], mask: NDArray[np.bool_], min_area: int
-) -> tuple[NDArray[np.uint8], tuple[float, float], float, tuple[float, float, float]] | None:
+#: A region as 0/1 bytes, its centre (row, col), its area and its levels
+#: (the rock's, the ground's, the ground's spread).
+Region = tuple[NDArray[np.uint8], tuple[float, float], float, tuple[float, float, float]]
+
+
+def measured_region(gray: NDArray[np.floating], mask: NDArray[np.bool_], min_area: int) -> Region | None:
     """A region as 0/1 bytes, its centre (row, col), its area and its levels
     (the rock's, the ground's and the ground's spread, ``_levels``); None
     when it is smaller than ``min_area`` pixels or has too little core or ring."""
