@@ -30,9 +30,12 @@ def label_maxima(
     """
     from scipy import ndimage
 
-    if labels.size == 0:
+    # Values at or below 0 cannot raise a maximum that is at least 0; left
+    # out, they spare the sort by label (a distance map is mostly zeros).
+    positive = values > 0
+    if not positive.any():
         return np.zeros(count)
-    found = ndimage.maximum(values, labels, np.arange(count))
+    found = ndimage.maximum(values[positive], labels[positive], np.arange(count))
     return np.maximum(np.asarray(found, dtype=np.float64), 0.0)
 
 
