@@ -104,9 +104,9 @@ Steps (see :func:`segment`):
 10. **Rim on.** A light domed rock darkens towards its rim, below the
     ground's level, and the half-way threshold leaves that rim out; where,
     along rays from the rock's centre, the profile falls past the outline
-    into a narrow valley darker than the ground and rises again to it, the
-    outline moves out to the valley's bottom, the rock's occluding edge
-    (``rockscan.core.segment.rim``).
+    into a narrow valley darker than the ground and rises again to it, on
+    at least 15% of the rays, the outline moves out to the valley's bottom,
+    the rock's occluding edge (``rockscan.core.segment.rim``).
 
 Known limits: a shadow whose edge with the rock's shaded side the photo does
 not show (the two as dark) stays with a dark rock; a pebble or a patch of

@@ -16,7 +16,11 @@ level at the occluding edge, blurred by the camera. Where the valley is
 narrow (the profile is back at the threshold within ``WIDTH`` of the
 rock's radius past the outline), the outline moves out to the valley's
 bottom. A cast shadow is darker ground beside the rock, as dark as its rim:
-there the profile stays low past the window and the ray is left alone.
+there the profile stays low past the window and the ray is left alone. A
+dark blob of the ground's texture just past a sharp edge makes a valley too,
+but past a stretch of ground (the profile rises on its way down to it) and on
+a few rays only; a rim darkens a good part of the outline, so nothing moves
+unless ``MIN_SHARE`` of the rays do.
 """
 
 from __future__ import annotations
@@ -43,6 +47,11 @@ NOISE = 2.0
 #: least ``MIN_VALLEY`` pixels).
 VALLEY = 0.04
 MIN_VALLEY = 3.0
+#: Least share of the rays that move for the outline to move at all.
+MIN_SHARE = 0.15
+#: On its way down to the valley the profile rises by at most this many
+#: robust spreads of the ground.
+RISE = 1.0
 #: Shifts under this many pixels are no rim's.
 MIN_SHIFT = 2.5
 #: Rays cast from the rock's centre, and the spacing of samples along them (pixels).
@@ -111,13 +120,20 @@ def rim_on(
     low = window[np.arange(RAYS), bottom]
     half = (low + threshold) / 2.0
     narrow = (window <= half[:, None]).sum(axis=1) * SPACING <= max(MIN_VALLEY, VALLEY * radius)
-    found = whole & deep & back & narrow
+    # The profile falls from the outline into the valley without rising on
+    # the way: a dip of the ground's texture beyond the rock's edge lies past
+    # a stretch of ground, where the profile rose again.
+    falling = window - np.minimum.accumulate(window, axis=1) <= RISE * noise
+    descends = (falling | (np.arange(steps)[None, :] > bottom[:, None])).all(axis=1)
+    found = whole & deep & back & narrow & descends
     shift = np.where(found, np.maximum(radii[index[np.arange(RAYS), bottom]] - radii[last], 0.0), 0.0)
     # A valley right at the outline is a dark line beside a sharp edge (a
     # coin's side, a contact shadow), outside the object.
     shift[shift < MIN_SHIFT] = 0.0
     shift = ndimage.median_filter(shift, size=SMOOTH_RAYS, mode="wrap")
-    if not shift.any():
+    # A rim darkens a good part of the outline; a dip of the ground's
+    # texture beside it, a few rays.
+    if np.count_nonzero(shift) < MIN_SHARE * RAYS:
         return mask
     outer = _star(mask.shape, centre, angles, radii[last] + shift)
     before = _star(mask.shape, centre, angles, radii[last])
