@@ -300,8 +300,19 @@ def _edges(found: Segmentation, pixels: NDArray[np.generic]) -> Segmentation:
             mask = _placed(rock, window, found.scale_rowcol)
             region = None
     grown = rim_on(gray, mask, region)
-    if grown is mask:
-        return found
+    return found if grown is mask else _main_grown(found, window, mask, grown)
+
+
+def _main_grown(
+    found: Segmentation,
+    window: tuple[int, int, int, int],
+    mask: NDArray[np.bool_],
+    grown: NDArray[np.bool_],
+) -> Segmentation:
+    """The segmentation with its main rock (``mask`` on ``window``) grown to
+    ``grown``: what is added is rock in the coverage and the labels; other
+    rocks are left as they are."""
+    rock = found.rocks[0]
     (r0, _, c0, _), (o0, o1), (h, w) = window, rock.origin_rowcol, rock.mask.shape
     coverage = np.zeros(mask.shape, np.float32)
     coverage[o0 - r0 : o0 - r0 + h, o1 - c0 : o1 - c0 + w] = rock.coverage
