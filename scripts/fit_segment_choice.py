@@ -31,7 +31,7 @@ it stops before the refinements.
 
 Needs scikit-learn besides rockscan (``pip install scikit-learn``)::
 
-    python scripts/fit_segment_choice.py -n 40 --jobs 2 --cache scene-cache --write
+    python scripts/fit_segment_choice.py --jobs 2 --cache scene-cache --write
 """
 
 from __future__ import annotations
@@ -204,7 +204,7 @@ def _measured(args) -> list:
     """Every development photo's candidates, measured (or read back from ``--measured``)."""
     if args.measured is not None and args.measured.exists():
         return pickle.loads(args.measured.read_bytes())
-    tasks = [(c, i) for c in CONDITIONS for i in range(args.n)]
+    tasks = [(c, i) for c in CONDITIONS for i in range(args.first, args.first + args.n)]
     if args.jobs > 1:
         import multiprocessing
 
@@ -284,9 +284,10 @@ def main() -> None:
     parser = argparse.ArgumentParser(
         description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
     )
-    parser.add_argument("-n", type=int, default=40, help="development photos per condition")
-    parser.add_argument("--trees", type=int, default=100, help="boosting rounds (default 100)")
-    parser.add_argument("--depth", type=int, default=3, help="depth of each tree (default 3)")
+    parser.add_argument("-n", type=int, default=200, help="development photos per condition (default 200)")
+    parser.add_argument("--first", type=int, default=0, help="index of the first photo of each condition")
+    parser.add_argument("--trees", type=int, default=200, help="boosting rounds (default 200)")
+    parser.add_argument("--depth", type=int, default=4, help="depth of each tree (default 4)")
     parser.add_argument("--rate", type=float, default=0.1, help="learning rate (default 0.1)")
     parser.add_argument("--free", action="store_true", help="no monotone constraints on the trees")
     parser.add_argument("--penalty", type=float, default=1.0, help="the linear baseline's L2 penalty")

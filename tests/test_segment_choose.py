@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 import pytest
 from hypothesis import given, settings
@@ -200,6 +202,17 @@ def test_each_source_has_its_own_column_and_unknown_sources_are_refused():
         choose(found, [1.0, 1.0], ["detected", "watershed"])
     with pytest.raises(ValueError, match="one source per candidate"):
         choose(found, [1.0, 1.0], ["detected"])
+
+
+def test_the_channel_column_marks_outlines_found_in_chromaticity():
+    grey = candidate(disk(60, 80, 20))
+    hue = dataclasses.replace(grey, channel="chromaticity")
+    features = choice_features([grey, hue], [1.0, 1.0])
+    column = features[:, FEATURES.index("chromaticity")]
+    np.testing.assert_array_equal(column, [0.0, 1.0])
+    # Everything else about the two outlines is the same.
+    others = np.delete(features, FEATURES.index("chromaticity"), axis=1)
+    np.testing.assert_array_equal(others[0], others[1])
 
 
 def test_of_outlines_of_one_object_the_detected_is_kept():

@@ -19,6 +19,9 @@ opened off). Each is measured by what a person would look at:
 * **pebbles**: the share of its area in round pieces hanging off its body
   (:func:`pebble_share`). A rock with a touching pebble joined on is the
   commonest wrong outline that the photo supports all round.
+* its **channel**: whether its region was found in the chromaticity channel
+  rather than in luminance. Its evidence is read in its own channel, so
+  the model learns how that compares with luminance's.
 * its **source**: one column per cue, so that the model learns how far each
   cue is to be trusted.
 
@@ -92,6 +95,7 @@ FEATURES = (
     "log_area",
     "consensus",
     "pebbles",
+    "chromaticity",
     *(f"from_{source}" for source in SOURCES[1:]),
 )
 
@@ -116,6 +120,9 @@ MONOTONE = {
     "consensus": 1,
     # A round piece hanging off the body is a touching pebble, never the rock.
     "pebbles": -1,
+    # Free: its evidence is read in its own channel, so how far it compares with
+    # luminance's is for the data to say.
+    "chromaticity": 0,
     # How far each cue is trusted is for the data to say.
     **{f"from_{source}": 0 for source in SOURCES[1:]},
 }
@@ -211,6 +218,7 @@ def _features(
                 math.log(max(share, 1e-6)),
                 consensus,
                 pebble_share(mask),
+                float(found.channel == "chromaticity"),
                 *(float(sources[k] == source) for source in SOURCES[1:]),
             ]
         )
