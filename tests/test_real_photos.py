@@ -106,21 +106,9 @@ def test_bundled_coin_is_a_circle(default_lib):
     assert result.rocks[0].match.nearest == result.rocks[0].match.match == "circle"
 
 
-#: A known failure: the dark gray rock on greenish ground shows in both channels,
-#: and the choice takes the chromaticity channel's outline, ragged at JPEG's
-#: half-resolution colour (nearest shape right, centroid 2.4 px and angle 1.8 deg
-#: off, not flagged). Strict: the test fails once the example is right again.
-_CHROMATICITY_OUTLINE = pytest.mark.xfail(
-    reason="the choice takes a coarser chromaticity outline (README, known limits)", strict=True
-)
-
-
 @pytest.mark.parametrize(
     "truth_path",
-    [
-        pytest.param(path, marks=_CHROMATICITY_OUTLINE) if path.stem == "0000-three-faced-blunt" else path
-        for path in sorted(EXAMPLES.glob("*.json"))
-    ],
+    sorted(EXAMPLES.glob("*.json")),
     ids=lambda p: p.stem,
 )
 def test_bundled_rendered_rocks_classify_as_their_truth(truth_path, default_lib):
@@ -128,7 +116,8 @@ def test_bundled_rendered_rocks_classify_as_their_truth(truth_path, default_lib)
     result = classify_path(EXAMPLES / truth["photo"], default_lib)
     assert result.ok, result.error
     rock = result.rocks[0]
-    assert rock.match.nearest == truth["shape"]
+    # Nearest and flagged: the examples are the library's own shapes.
+    assert rock.match.nearest == rock.match.match == truth["shape"]
     np.testing.assert_allclose(rock.centroid_xy, truth["centroid_xy"], atol=1.0)
     period = 360.0 / truth["symmetry"]
     assert abs((rock.match.angle_deg - truth["angle_deg"] + period / 2) % period - period / 2) < 1.5

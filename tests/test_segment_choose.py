@@ -15,9 +15,11 @@ from rockscan.core.segment.choose import (
     MONOTONE,
     SAME_OBJECT,
     SOURCES,
+    _mutual_ious,
     choice_features,
     choice_probabilities,
     choose,
+    choose_ranked,
     pebble_share,
 )
 from rockscan.core.segment.split import _solidity
@@ -213,6 +215,31 @@ def test_the_channel_column_marks_outlines_found_in_chromaticity():
     # Everything else about the two outlines is the same.
     others = np.delete(features, FEATURES.index("chromaticity"), axis=1)
     np.testing.assert_array_equal(others[0], others[1])
+
+
+def _in_channel(found: Segmentation, channel: str, inner_spread: float) -> Segmentation:
+    rock = dataclasses.replace(found.rocks[0], inner_spread=inner_spread)
+    return dataclasses.replace(found, channel=channel, rocks=(rock,))
+
+
+def test_a_colour_outline_uneven_inside_yields_to_the_brightness_outline_of_the_same_rock():
+    # The colour outline is the better supported one (the choice model takes it)...
+    hue = candidate(disk(60, 80, 20), score=0.99)
+    grey = candidate(disk(60, 80, 21.2), score=0.9)
+    elsewhere = candidate(disk(30, 40, 12), score=0.9)
+    assert 0.85 <= _mutual_ious([hue, grey])[0, 1] < SAME_OBJECT
+    even = [_in_channel(hue, "chromaticity", 0.1), _in_channel(grey, "luminance", 0.1)]
+    assert choose(even, [1.0, 1.0])[0] == 0
+    # ...unless its inside spreads more than UNEVEN_INSIDE times as much as the
+    # brightness outline's: brightness then shows the rock better.
+    uneven = [_in_channel(hue, "chromaticity", 0.25), _in_channel(grey, "luminance", 0.1)]
+    index, probabilities = choose(uneven, [1.0, 1.0]), choose_ranked(uneven, [1.0, 1.0])[1]
+    assert index[0] == 1 and index[1] == probabilities.max()
+    # Another object, or another colour outline, is no brightness outline of the same rock.
+    apart = [_in_channel(hue, "chromaticity", 0.25), _in_channel(elsewhere, "luminance", 0.1)]
+    assert choose(apart, [1.0, 1.0])[0] == 0
+    both_colour = [_in_channel(hue, "chromaticity", 0.25), _in_channel(grey, "chromaticity", 0.1)]
+    assert choose(both_colour, [1.0, 1.0])[0] == 0
 
 
 def test_of_outlines_of_one_object_the_detected_is_kept():

@@ -167,6 +167,23 @@ def test_dark_beside_an_outline_is_measured_apart_from_its_score():
     np.testing.assert_allclose(rimmed.as_array()[:3], plain.as_array()[:3], atol=0.01)
 
 
+def test_a_noisy_inside_spreads_the_inside_apart_from_the_score():
+    level, truth = disc_level(noise=0.05)
+    yy, xx = np.mgrid[: truth.shape[0], : truth.shape[1]]
+    # A rock seen in a channel that noise dominates on it (a dark rock's
+    # chromaticity), away from its outline: its inside spreads 0.3 of the step.
+    noisy = level.copy()
+    deep = np.hypot(yy - 60, xx - 60) < 25.5
+    noisy[deep] += np.random.default_rng(1).normal(0.0, 0.3, int(deep.sum())).astype(np.float32)
+    sides = (False,) * 4
+    even, spread = outline_evidence(level, truth, sides), outline_evidence(noisy, truth, sides)
+    # Robust spreads of normal samples of sigma 0.05 and about 0.3, in units of the unit step.
+    assert even.inner_spread == pytest.approx(0.05, abs=0.01)
+    assert spread.inner_spread == pytest.approx(0.3, abs=0.06)
+    # Not scored: the evidence along the outline is the same.
+    np.testing.assert_allclose(spread.as_array()[:5], even.as_array()[:5], atol=1e-6)
+
+
 def test_an_outline_along_the_frame_scores_lower_than_inside_it():
     level, truth = disc_level()
     inside = outline_score(outline_evidence(level, truth, (False,) * 4))

@@ -56,6 +56,12 @@ class OutlineEvidence:
         step: something against the outline, beyond the ground from the rock
         (for a light rock, its own shaded side or its cast shadow). Not
         scored: the fast path reads it (``rockscan.core.segment``).
+    inner_spread : float
+        Robust spread of the level inside the outline, beyond the band along
+        it, in units of the step (capped at 2). Not scored: the choice among
+        candidates reads it (``rockscan.core.segment.choose``): an outline
+        found in a channel that noise dominates on the rock (a dark rock's
+        chromaticity) is uneven inside, and often ragged.
     """
 
     support: float
@@ -65,6 +71,7 @@ class OutlineEvidence:
     frame: float
     solidity: float
     darker_outside: float = 0.0
+    inner_spread: float = 1.0
 
     def as_array(self) -> NDArray[np.float64]:
         """The scored measurements, in the order of ``WEIGHTS``."""
@@ -74,6 +81,10 @@ class OutlineEvidence:
 #: Level (0 the ground's, 1 the rock's) below which a pixel beside an
 #: outline lies beyond the ground from the rock (``darker_outside``).
 DARKER_LEVEL = -0.25
+
+
+#: Pixels the inside's spread is read from, at most (a strided sample).
+_SPREAD_SAMPLE = 2048
 
 
 #: Logistic weights of the evidence (support, weak, outside, noise, frame,
@@ -161,6 +172,10 @@ def outline_evidence(
         outside = float(np.clip(outside_mean, 0.0, 1.0).mean())
     beside = (outside_dist > 0) & (outside_dist <= 3 * width)
     darker_outside = float(np.count_nonzero(beside & (lv < DARKER_LEVEL))) / max(np.count_nonzero(beside), 1)
+    core = lv[inside_dist > reach]
+    # A strided sample: the spread of a few thousand pixels is as good as all of them.
+    core = core[:: max(1, core.size // _SPREAD_SAMPLE)]
+    inner_spread = min(robust_spread(core), 2.0) if core.size >= 8 else 1.0
     ring = (outside_dist > reach) & (outside_dist <= 3 * reach)
     ring = ring[pad:-pad, pad:-pad]
     values = level[ring] if ring.sum() >= 8 else level[~mask]
@@ -171,4 +186,6 @@ def outline_evidence(
     contours, _ = cv2.findContours(m8, cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_SIMPLE)
     hull_area = max(cv2.contourArea(cv2.convexHull(np.concatenate(contours))), 1.0)
     solidity = float(min(1.0, area / hull_area))
-    return OutlineEvidence(support, weak, outside, min(noise, 2.0), frame, solidity, darker_outside)
+    return OutlineEvidence(
+        support, weak, outside, min(noise, 2.0), frame, solidity, darker_outside, inner_spread
+    )

@@ -114,6 +114,7 @@ def _scored(
         score=outline_score(evidence),
         evidence=tuple(float(v) for v in evidence.as_array()),
         darker_outside=evidence.darker_outside,
+        inner_spread=evidence.inner_spread,
     )
 
 

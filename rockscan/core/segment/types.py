@@ -144,6 +144,9 @@ class RockMask:
     darker_outside : float
         Share of a band just outside the outline darker than the ground, away
         from the rock's level (``rockscan.core.segment.score.OutlineEvidence``).
+    inner_spread : float
+        Robust spread of the level inside the outline, in units of the step
+        (``rockscan.core.segment.score.OutlineEvidence``).
     """
 
     mask: NDArray[np.bool_]
@@ -152,6 +155,7 @@ class RockMask:
     score: float = 1.0
     evidence: tuple[float, ...] = ()
     darker_outside: float = 0.0
+    inner_spread: float = 1.0
 
     @property
     def area(self) -> int:
