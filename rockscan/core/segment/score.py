@@ -172,9 +172,9 @@ def outline_evidence(
         outside = float(np.clip(outside_mean, 0.0, 1.0).mean())
     beside = (outside_dist > 0) & (outside_dist <= 3 * width)
     darker_outside = float(np.count_nonzero(beside & (lv < DARKER_LEVEL))) / max(np.count_nonzero(beside), 1)
-    core = lv[inside_dist > reach]
-    # A strided sample: the spread of a few thousand pixels is as good as all of them.
-    core = core[:: max(1, core.size // _SPREAD_SAMPLE)]
+    # A strided grid of pixels: the spread of a few thousand is as good as all of them.
+    step = max(1, math.isqrt(area // _SPREAD_SAMPLE))
+    core = lv[::step, ::step][inside_dist[::step, ::step] > reach]
     inner_spread = min(robust_spread(core), 2.0) if core.size >= 8 else 1.0
     ring = (outside_dist > reach) & (outside_dist <= 3 * reach)
     ring = ring[pad:-pad, pad:-pad]
