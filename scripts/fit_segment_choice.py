@@ -36,19 +36,18 @@ Needs scikit-learn besides rockscan (``pip install scikit-learn``)::
 
 from __future__ import annotations
 
-import argparse
 import importlib
-import pickle
 import sys
 import textwrap
 from pathlib import Path
 
 import numpy as np
-from scipy.optimize import minimize
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 import bench_segment as bench
+import fitting
 import scenes
+from fitting import measured, set_cache, signed_logistic
 
 from rockscan.core.errors import NoRockFoundError
 from rockscan.core.segment import FAST_PROBABILITY
@@ -97,24 +96,8 @@ def fit(features: list[np.ndarray], ious: list[np.ndarray], penalty: float) -> t
     """Raw-feature weights and intercept of the penalised, sign-constrained logistic model."""
     from rockscan.core.segment.choose import FEATURES
 
-    x = np.vstack(features)
-    y = (np.concatenate(ious) >= 0.9).astype(np.float64)
-    mu, sd = x.mean(axis=0), x.std(axis=0) + 1e-9
-    z = (x - mu) / sd
-
-    def loss(w: np.ndarray) -> tuple[float, np.ndarray]:
-        t = z @ w[1:] + w[0]
-        p = 1.0 / (1.0 + np.exp(-t))
-        value = float(np.sum(np.logaddexp(0.0, t) - y * t) + penalty * np.sum(w[1:] ** 2))
-        grad = np.concatenate([[np.sum(p - y)], z.T @ (p - y) + 2.0 * penalty * w[1:]])
-        return value, grad
-
-    bounds = [(None, None)] + [
-        {1: (0.0, None), -1: (None, 0.0), 0: (None, None)}[SIGNS[name]] for name in FEATURES
-    ]
-    w = minimize(loss, np.zeros(z.shape[1] + 1), jac=True, method="L-BFGS-B", bounds=bounds).x
-    weights = w[1:] / sd
-    return weights, float(w[0] - np.sum(w[1:] * mu / sd))
+    y = np.concatenate(ious) >= 0.9
+    return signed_logistic(np.vstack(features), y, penalty, [SIGNS[name] for name in FEATURES])
 
 
 def hits(features: list[np.ndarray], ious: list[np.ndarray], rank) -> np.ndarray:
@@ -202,21 +185,8 @@ def write_model(arrays: dict, detected_arrays: dict, path: Path, summary: str) -
 
 def _measured(args) -> list:
     """Every development photo's candidates, measured (or read back from ``--measured``)."""
-    if args.measured is not None and args.measured.exists():
-        return pickle.loads(args.measured.read_bytes())
     tasks = [(c, i) for c in CONDITIONS for i in range(args.first, args.first + args.n)]
-    if args.jobs > 1:
-        import multiprocessing
-
-        with multiprocessing.get_context("spawn").Pool(
-            args.jobs, initializer=_set_cache, initargs=(args.cache,)
-        ) as pool:
-            results = pool.map(_measure, tasks, chunksize=1)
-    else:
-        results = [_measure(t) for t in tasks]
-    if args.measured is not None:
-        args.measured.write_bytes(pickle.dumps(results))
-    return results
+    return measured(_measure, tasks, jobs=args.jobs, cache=args.cache, keep=args.measured)
 
 
 def cross_validated(features: list[np.ndarray], ious: list[np.ndarray], fit_rank) -> np.ndarray:
@@ -281,22 +251,15 @@ def staged_cross_validated(
 
 
 def main() -> None:
-    parser = argparse.ArgumentParser(
-        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
-    )
-    parser.add_argument("-n", type=int, default=200, help="development photos per condition (default 200)")
-    parser.add_argument("--first", type=int, default=0, help="index of the first photo of each condition")
+    parser = fitting.parser(__doc__, first=0)
     parser.add_argument("--trees", type=int, default=200, help="boosting rounds (default 200)")
     parser.add_argument("--depth", type=int, default=4, help="depth of each tree (default 4)")
     parser.add_argument("--rate", type=float, default=0.1, help="learning rate (default 0.1)")
     parser.add_argument("--free", action="store_true", help="no monotone constraints on the trees")
     parser.add_argument("--penalty", type=float, default=1.0, help="the linear baseline's L2 penalty")
     parser.add_argument("--write", action="store_true", help="write the trees to choice_model.py")
-    parser.add_argument("--jobs", type=int, default=1)
-    parser.add_argument("--cache", type=Path, help="keep generated photos in this folder between runs")
-    parser.add_argument("--measured", type=Path, help="keep the measured candidates in this .pkl file")
     args = parser.parse_args()
-    bench._CACHE_DIR = args.cache
+    set_cache(args.cache)
     results = _measured(args)
     conditions = np.array([r[0] for r in results])
     features = [r[1] for r in results]
@@ -364,10 +327,6 @@ def main() -> None:
             theirs = fitted.predict_proba(x)[:, 1]
             gap = np.abs(ours - theirs).max()
             print(f"wrote {name} to {path}; largest difference from scikit-learn: {gap:.2e}")
-
-
-def _set_cache(cache: Path | None) -> None:
-    bench._CACHE_DIR = cache
 
 
 if __name__ == "__main__":

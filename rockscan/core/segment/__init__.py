@@ -91,6 +91,8 @@ Steps (see :func:`segment`):
    above all, which cost most, are not made. Unless the choice is sure, a
    candidate inside the chosen outline replaces it when the part it leaves
    out is a cast shadow darker than the rock (``shadow.shadow_left_out``).
+   A rock chosen among the whole pool is scored by how sure that choice is
+   over the photo (``rockscan.core.segment.confidence``).
 8. **Pebbles off.** Round pieces that hang off the chosen outline at a neck
    (touching pebbles, which join every cue's region) are cut off along
    their contacts (``rockscan.core.segment.pebbles``); lobes all round it are
@@ -130,7 +132,8 @@ from numpy.typing import NDArray
 from rockscan.core._threads import one_blas_thread
 from rockscan.core.errors import NoRockFoundError, ParameterError
 from rockscan.core.segment.channels import _LUMA, _at_scale, _channels, _check_pixels, _pyramid, _unit
-from rockscan.core.segment.choose import choose_ranked
+from rockscan.core.segment.choose import choose_ranked, rank
+from rockscan.core.segment.confidence import confidence_features, outline_confidence
 from rockscan.core.segment.detect import _detect, _Detection, _luminance_polarity
 from rockscan.core.segment.pebbles import lobed, pebbles_off
 from rockscan.core.segment.rim import rim_on
@@ -207,25 +210,46 @@ def segment(
     """
     config = config or SegmentConfig()
     found = _main_rock(pixels, config, all_rocks=all_rocks)
-    if all_rocks or found.channel == "alpha":
+    return found if all_rocks else _finished(found, pixels)
+
+
+def _finished(found: Segmentation, pixels: NDArray[np.generic]) -> Segmentation:
+    """The main rock with touching pebbles cut off and its edges seen to (steps 8-10);
+    an outline an alpha channel gave stands as it is."""
+    if found.channel == "alpha":
         return found
     return _edges(_pebbles_off(found), pixels)
 
 
 def _main_rock(pixels: NDArray[np.generic], config: SegmentConfig, *, all_rocks: bool) -> Segmentation:
-    """The fast path's segmentation, or the candidate the choice takes, scored by its probability."""
+    """The fast path's segmentation, or the candidate the choice takes, scored by how sure it is."""
+    found, features = _chosen(pixels, config, all_rocks=all_rocks)
+    if features is None:
+        return found
+    main = dataclasses.replace(found.rocks[0], score=outline_confidence(features))
+    return dataclasses.replace(found, rocks=(main, *found.rocks[1:]))
+
+
+def _chosen(
+    pixels: NDArray[np.generic], config: SegmentConfig, *, all_rocks: bool = False
+) -> tuple[Segmentation, NDArray[np.float64] | None]:
+    """The fast path's segmentation, or the candidate the choice takes; and for a
+    choice among the whole pool, what its score is read from
+    (``confidence.confidence_features``; None otherwise, the score set).
+    """
     pool = _candidate_pool(pixels, config, all_rocks=all_rocks, fast=True)
     if isinstance(pool, Segmentation):
-        return pool
+        return pool, None
     candidates = pool.candidates
     # The refinements (GrabCut) cost most: they are made only when the choice
     # among the detected candidates, by trees fitted on such pools, is not already sure.
-    index, probabilities = choose_ranked(*zip(*candidates, strict=True), detected_only=True)
-    if probabilities.max() >= FAST_PROBABILITY:
-        return _main_scored(candidates[index][0], probabilities)
+    index, detected = choose_ranked(*zip(*candidates, strict=True), detected_only=True)
+    if detected.max() >= FAST_PROBABILITY:
+        return _main_scored(candidates[index][0], detected), None
     candidates = candidates + pool.refined()
-    index, probabilities = choose_ranked(*zip(*candidates, strict=True))
-    return _main_scored(_without_shadow(candidates, index, probabilities, pixels), probabilities)
+    ranking = rank(*zip(*candidates, strict=True))
+    found = _without_shadow(candidates, ranking.index, ranking.probabilities, pixels)
+    return found, confidence_features(ranking, float(detected.max()))
 
 
 def _without_shadow(
@@ -238,7 +262,7 @@ def _without_shadow(
     leaves out a cast shadow it took in (``shadow.shadow_left_out``).
 
     The rock is the same object, less its shadow: it keeps the chosen
-    candidate's probability as its score.
+    candidate's score.
     """
     found = candidates[index][0]
     # A choice already sure of its outline is not second-guessed.
@@ -438,13 +462,13 @@ def _main_scored(found: Segmentation, probabilities: NDArray[np.float64]) -> Seg
     """The segmentation with its main rock's score set to the choice's
     probability that its object is the rock (the candidates' largest).
 
-    A main rock chosen among candidates is scored by the choice model's
-    probability that its outline is right, which ranks right outlines above
-    wrong ones better than the outline's own evidence: on development photos
-    the model was not fitted on (the 40th to 59th of each condition), AUROC
-    0.885 against 0.820 (IoU >= 0.9 against < 0.8). An outline the fast path
-    takes is supported all round and keeps its outline score (>= ``FAST_SCORE``,
-    or less for a lobed rock's arms: see :func:`_fast_outline`).
+    A main rock chosen among the detected candidates alone is scored so: the
+    choice model's probability ranks right outlines above wrong ones better
+    than the outline's own evidence. One chosen among the whole pool is
+    scored by ``confidence.outline_confidence`` (:func:`_main_rock`). An
+    outline the fast path takes is supported all round and keeps its outline
+    score (>= ``FAST_SCORE``, or less for a lobed rock's arms: see
+    :func:`_fast_outline`).
     """
     main = dataclasses.replace(found.rocks[0], score=float(probabilities.max()))
     return dataclasses.replace(found, rocks=(main, *found.rocks[1:]))

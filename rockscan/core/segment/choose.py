@@ -32,10 +32,10 @@ outlines the rock (intersection over union >= 0.9), and the most probable
 wins: gradient-boosted regression trees (:func:`choice_probabilities`),
 fitted on the development part of the segmentation benchmark
 (``scripts/fit_segment_choice.py``, which also fits the one-weight-per-feature
-logistic model they replaced, as a baseline). The winner's probability
-becomes the rock's segmentation score (``rockscan.core.segment.segment``):
-it ranks right outlines above wrong ones better than the outline's own
-evidence.
+logistic model they replaced, as a baseline). The winner's probability,
+read with the rest of the choice (``rockscan.core.segment.confidence``),
+becomes the rock's segmentation score: it ranks right outlines above wrong
+ones better than the outline's own evidence.
 
 The refinements (GrabCut above all) cost most, so the detection's own
 outlines are judged first, alone, by trees of their own fitted on such
@@ -59,11 +59,13 @@ from rockscan.core.segment.types import Segmentation
 __all__ = [
     "FEATURES",
     "MONOTONE",
+    "Ranking",
     "choice_features",
     "choice_probabilities",
     "choose",
     "choose_ranked",
     "pebble_share",
+    "rank",
 ]
 
 #: Where a candidate comes from: the detection's own threshold outlines
@@ -329,6 +331,39 @@ def choose_ranked(
         the largest is the probability that the chosen candidate's object is
         the rock.
     """
+    ranking = rank(candidates, detection_scores, sources, detected_only=detected_only)
+    return ranking.index, ranking.probabilities
+
+
+class Ranking(NamedTuple):
+    """The choice among candidates (:func:`rank`).
+
+    Attributes
+    ----------
+    index : int
+        The candidate taken.
+    probabilities : (n,) ndarray of float64
+        The choice model's probability that each candidate outlines the rock.
+    features : (n, len(FEATURES)) ndarray of float64
+        Every candidate's choice features.
+    ious : (n, n) ndarray of float64
+        Intersection over union of every pair of candidates, on a common grid.
+    """
+
+    index: int
+    probabilities: NDArray[np.float64]
+    features: NDArray[np.float64]
+    ious: NDArray[np.float64]
+
+
+def rank(
+    candidates: Sequence[Segmentation],
+    detection_scores: Sequence[float],
+    sources: Sequence[str] | None = None,
+    *,
+    detected_only: bool = False,
+) -> Ranking:
+    """:func:`choose_ranked`, with the features and mutual overlaps it was made from."""
     sources = _sources(sources, len(candidates))
     ious = _mutual_ious(candidates)
     features = _features(candidates, detection_scores, sources, ious)
@@ -343,7 +378,7 @@ def choose_ranked(
         math.log(max(candidates[k].rocks[0].score, 1e-12)) + _DETECTION_WEIGHT * features[k, column]
         for k in same
     ]
-    return int(same[int(np.argmax(support))]), probabilities
+    return Ranking(int(same[int(np.argmax(support))]), probabilities, features, ious)
 
 
 #: Intersection over union from which two candidates outline the same object.

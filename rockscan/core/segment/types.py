@@ -129,8 +129,10 @@ class RockMask:
         The window's top-left pixel in the working image.
     score : float
         Segmentation score in [0, 1]. For the main rock of a photo of one
-        rock chosen among candidate outlines, the choice model's estimate of
-        the probability that its outline is right (IoU >= 0.9 with the rock).
+        rock chosen among candidate outlines, an estimate of the probability
+        that its outline is right (IoU >= 0.9 with the rock): read from the
+        whole choice (``rockscan.core.segment.confidence``), or the choice
+        model's own when the detected candidates alone decided.
         For a main rock the fast path took, for every rock found with
         ``all_rocks`` and for every candidate before the choice, how well
         the photo supports the outline (a step

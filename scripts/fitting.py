@@ -1,0 +1,84 @@
+"""What the fitting scripts share: measuring development photos in parallel,
+kept between runs, and a logistic model whose weights keep given signs."""
+
+from __future__ import annotations
+
+import argparse
+import pickle
+from collections.abc import Callable, Sequence
+from pathlib import Path
+
+import bench_segment as bench
+import numpy as np
+from scipy.optimize import minimize
+
+
+def parser(doc: str, first: int) -> argparse.ArgumentParser:
+    """The options every fitting script takes: which development photos, and
+    how to measure them (the script adds its own)."""
+    parser = argparse.ArgumentParser(description=doc, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("-n", type=int, default=200, help="development photos per condition (default 200)")
+    parser.add_argument(
+        "--first",
+        type=int,
+        default=first,
+        help=f"first photo of each condition (default {first})",
+    )
+    parser.add_argument("--jobs", type=int, default=1, help="processes (default 1)")
+    parser.add_argument("--cache", type=Path, help="keep generated photos in this folder between runs")
+    parser.add_argument("--measured", type=Path, help="keep the measurements in this .pkl file")
+    return parser
+
+
+def set_cache(cache: Path | None) -> None:
+    """Keep the benchmark's generated photos in ``cache`` (in this process)."""
+    bench._CACHE_DIR = cache
+
+
+def measured(
+    measure: Callable,
+    tasks: Sequence,
+    *,
+    jobs: int,
+    cache: Path | None,
+    keep: Path | None,
+    chunksize: int = 1,
+) -> list:
+    """``measure`` of every task, on ``jobs`` processes; read back from ``keep``
+    when it exists, written there otherwise (when given)."""
+    if keep is not None and keep.exists():
+        return pickle.loads(keep.read_bytes())
+    if jobs > 1:
+        import multiprocessing
+
+        with multiprocessing.get_context("spawn").Pool(
+            jobs, initializer=set_cache, initargs=(cache,)
+        ) as pool:
+            results = pool.map(measure, tasks, chunksize=chunksize)
+    else:
+        set_cache(cache)
+        results = [measure(t) for t in tasks]
+    if keep is not None:
+        keep.write_bytes(pickle.dumps(results))
+    return results
+
+
+def signed_logistic(
+    x: np.ndarray, y: np.ndarray, penalty: float, signs: Sequence[int]
+) -> tuple[np.ndarray, float]:
+    """Raw-feature weights and intercept of a logistic model with an L2 penalty
+    on standardised features, each weight's sign held (+1: >= 0, -1: <= 0, 0: free)."""
+    y = np.asarray(y, dtype=np.float64)
+    mu, sd = x.mean(axis=0), x.std(axis=0) + 1e-9
+    z = (x - mu) / sd
+
+    def loss(w: np.ndarray) -> tuple[float, np.ndarray]:
+        t = z @ w[1:] + w[0]
+        p = 1.0 / (1.0 + np.exp(-t))
+        value = float(np.sum(np.logaddexp(0.0, t) - y * t) + penalty * np.sum(w[1:] ** 2))
+        grad = np.concatenate([[np.sum(p - y)], z.T @ (p - y) + 2.0 * penalty * w[1:]])
+        return value, grad
+
+    bounds = [(None, None)] + [{1: (0.0, None), -1: (None, 0.0), 0: (None, None)}[s] for s in signs]
+    w = minimize(loss, np.zeros(z.shape[1] + 1), jac=True, method="L-BFGS-B", bounds=bounds).x
+    return w[1:] / sd, float(w[0] - np.sum(w[1:] * mu / sd))

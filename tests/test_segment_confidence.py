@@ -1,0 +1,127 @@
+"""The score of a rock chosen among the whole pool of candidates (rockscan.core.segment.confidence)."""
+
+from __future__ import annotations
+
+import math
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from rockscan.core.segment import _chosen, confidence, segment
+from rockscan.core.segment.choose import FEATURES, Ranking
+from rockscan.core.segment.confidence import (
+    CONFIDENCE_FEATURES,
+    INTERCEPT,
+    SIGNS,
+    WEIGHTS,
+    confidence_features,
+    outline_confidence,
+)
+from rockscan.core.segment.types import SegmentConfig
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "scripts"))
+import bench_segment
+import fit_segment_confidence as fitting
+
+
+def logit(p: float) -> float:
+    return math.log(p / (1.0 - p))
+
+
+def ranking() -> Ranking:
+    """Four candidates: the chosen one (1), one agreeing with it, one of another
+    object, one in between."""
+    probabilities = np.array([0.3, 0.6, 0.5, 0.2])
+    ious = np.array(
+        [
+            [1.0, 0.9, 0.1, 0.6],
+            [0.9, 1.0, 0.2, 0.7],
+            [0.1, 0.2, 1.0, 0.3],
+            [0.6, 0.7, 0.3, 1.0],
+        ]
+    )
+    features = np.arange(4 * len(FEATURES), dtype=np.float64).reshape(4, len(FEATURES))
+    return Ranking(1, probabilities, features, ious)
+
+
+def test_the_features_read_the_best_the_rival_and_the_agreeing_candidates():
+    x = confidence_features(ranking(), detected_best=0.4)
+    assert x.shape == (len(CONFIDENCE_FEATURES),)
+    col = {name: k for k, name in enumerate(CONFIDENCE_FEATURES)}
+    assert x[col["logit_best"]] == pytest.approx(logit(0.6))
+    # The rival: candidate 2, IoU 0.2 < 0.5 with the chosen one (3 lies in between).
+    assert x[col["logit_rival"]] == pytest.approx(logit(0.5))
+    # Agreeing: the chosen one and candidate 0 (IoU 0.9).
+    assert x[col["logit_agreeing"]] == pytest.approx(logit(0.45))
+    assert x[col["agreeing"]] == 2.0 and x[col["candidates"]] == 4.0
+    assert x[col["logit_detected_best"]] == pytest.approx(logit(0.4))
+    # The chosen candidate's own features, up to its channel.
+    own = [k for k, name in enumerate(CONFIDENCE_FEATURES) if name.startswith("own_")]
+    np.testing.assert_array_equal(x[own], ranking().features[1, : len(own)])
+    assert CONFIDENCE_FEATURES[own[-1]] == "own_chromaticity"
+
+
+def test_no_rival_counts_as_a_probability_near_zero():
+    r = ranking()
+    alone = Ranking(r.index, r.probabilities, r.features, np.ones_like(r.ious))
+    x = confidence_features(alone, detected_best=0.4)
+    assert x[CONFIDENCE_FEATURES.index("logit_rival")] == pytest.approx(logit(1e-4))
+    assert x[CONFIDENCE_FEATURES.index("agreeing")] == 4.0
+
+
+def test_the_score_is_a_probability_and_the_fit_reads_the_choice_as_expected():
+    x = confidence_features(ranking(), detected_best=0.4)
+    assert 0.0 < outline_confidence(x) < 1.0
+    assert outline_confidence(x) == pytest.approx(1.0 / (1.0 + math.exp(-(INTERCEPT + WEIGHTS @ x))))
+    # A more probable choice is surer; a more probable rival object, less sure.
+    col = {name: k for k, name in enumerate(CONFIDENCE_FEATURES)}
+    assert WEIGHTS[col["logit_best"]] > 0 and WEIGHTS[col["logit_rival"]] < 0
+    # Far out, the log-odds are clipped rather than overflowing.
+    assert outline_confidence(np.sign(WEIGHTS) * 1e6) == pytest.approx(1.0)
+    assert outline_confidence(-np.sign(WEIGHTS) * 1e6) == pytest.approx(0.0)
+
+
+def test_a_rock_chosen_among_the_whole_pool_is_scored_by_the_fitted_model():
+    # Development photo "shaded" 0 is decided by the whole pool.
+    pixels, _, _ = bench_segment.photo("dev", "shaded", 0)
+    _, features = _chosen(pixels, SegmentConfig())
+    assert features is not None
+    assert segment(pixels).rocks[0].score == pytest.approx(outline_confidence(features))
+
+
+# ---------------------------------------------------------------- the fit (scripts/fit_segment_confidence.py)
+
+
+def test_the_auroc_counts_right_outlines_ranked_above_wrong_ones():
+    ious = np.array([0.95, 0.92, 0.5, 0.7, 0.85])
+    scores = np.array([0.9, 0.4, 0.6, 0.1, 0.99])
+    # Right (0.95, 0.92) against wrong (0.5, 0.7); 0.85 counts as neither. Of
+    # the four pairs, three rank right: 0.4 < 0.6 is the one that does not.
+    auroc, trusted, refused = fitting.judged(ious, scores)
+    assert auroc == pytest.approx(0.75)
+    assert (trusted, refused) == (1, 1)
+
+
+def test_the_fit_holds_every_weight_to_its_direction():
+    rng = np.random.default_rng(0)
+    x = rng.normal(size=(400, len(CONFIDENCE_FEATURES)))
+    # An outcome that every feature pushes the wrong way.
+    signs = np.array([SIGNS[name] for name in CONFIDENCE_FEATURES], dtype=np.float64)
+    y = (x @ -np.where(signs == 0, 1.0, signs) + rng.normal(size=400)) > 0
+    weights, _ = fitting.fit(x, y, penalty=1.0)
+    assert np.all(weights[signs > 0] >= 0.0) and np.all(weights[signs < 0] <= 0.0)
+    # Free features follow the data.
+    assert np.all(weights[signs == 0] < 0.0)
+
+
+def test_written_weights_are_read_back(tmp_path):
+    path = tmp_path / "confidence.py"
+    path.write_text(Path(confidence.__file__).read_text())
+    weights = np.linspace(-1.0, 1.0, len(CONFIDENCE_FEATURES))
+    fitting.write((weights, 0.25), path)
+    namespace: dict = {}
+    exec(compile(path.read_text(), str(path), "exec"), namespace)
+    np.testing.assert_allclose(namespace["WEIGHTS"], weights, rtol=1e-5)
+    assert namespace["INTERCEPT"] == pytest.approx(0.25)
