@@ -725,6 +725,59 @@ def write_figures(directory: Path, part: str) -> list[Path]:
     return written
 
 
+def write_score_figure(records: list[dict], part: str, path: Path) -> Path | None:
+    """How the segmentation score reads on a part's photos of one rock and crops:
+    the share of right outlines (IoU >= 0.9) among those scored in each tenth,
+    beside what the score promises, and how the scores of right and wrong
+    (IoU < 0.8) outlines spread. None when the part has no scored outline."""
+    rs = [r for r in _single(records, part, "rockscan") if np.isfinite(r.get("score", np.nan))]
+    if not rs:
+        return None
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    score = np.array([r["score"] for r in rs])
+    iou = np.array([r["iou"] for r in rs])
+    edges = np.linspace(0.0, 1.0, 11)
+    which = np.clip(np.digitize(score, edges) - 1, 0, 9)
+    fig, (left, right) = plt.subplots(1, 2, figsize=(10, 4), dpi=100)
+    left.plot([0, 1], [0, 1], color="0.6", lw=1, ls="--", label="as promised")
+    centres, shares, counts = [], [], []
+    for k in range(10):
+        inside = which == k
+        if inside.any():
+            centres.append(score[inside].mean())
+            shares.append((iou[inside] >= IOU_GOOD).mean())
+            counts.append(int(inside.sum()))
+    left.plot(centres, shares, "o-", color="tab:red", label="rockscan")
+    for x, y, n in zip(centres, shares, counts, strict=True):
+        left.annotate(str(n), (x, y), textcoords="offset points", xytext=(4, -12), fontsize=8)
+    left.set(xlim=(0, 1), ylim=(0, 1.02), xlabel="segmentation score (mean of each tenth)")
+    left.set_ylabel("share of outlines with IoU >= 0.9")
+    left.set_title("right where the score says (photos a tenth beside each point)", fontsize=10)
+    left.legend(loc="upper left", fontsize=9)
+    auroc, n_good, n_bad = score_auroc(records, part)
+    bins = np.linspace(0.0, 1.0, 21)
+    right.hist(
+        score[iou >= IOU_GOOD], bins=bins, color="tab:green", alpha=0.7, label=f"IoU >= 0.9 ({n_good})"
+    )
+    right.hist(score[iou < 0.8], bins=bins, color="tab:red", alpha=0.7, label=f"IoU < 0.8 ({n_bad})")
+    right.axvline(0.5, color="0.3", lw=1, ls=":", label="0.5, below which a rock is never interesting")
+    right.set(xlabel="segmentation score", ylabel="outlines", yscale="log")
+    right.set_title(f"right and wrong outlines apart: AUROC {auroc:.3f}", fontsize=10)
+    right.legend(loc="upper left", fontsize=8)
+    fig.suptitle(
+        f"segmentation score on the {part} part ({len(rs)} photos of one rock and crops)", fontsize=11
+    )
+    fig.tight_layout()
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path)
+    plt.close(fig)
+    return path
+
+
 # --------------------------------------------------------------------------- CLI
 
 
@@ -740,7 +793,9 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--methods", default=",".join(METHODS), help="comma-separated rows (default: all)")
     parser.add_argument("--jobs", type=int, default=1, help="processes (default 1)")
     parser.add_argument("--json", type=Path, help="write the rows and per-photo records here")
-    parser.add_argument("--figures", type=Path, help="write the overlay figures into this folder")
+    parser.add_argument(
+        "--figures", type=Path, help="write the overlay figures and the score's figure into this folder"
+    )
     parser.add_argument("--cache", type=Path, help="keep generated photos in this folder between runs")
     args = parser.parse_args(argv)
     methods = [m for m in args.methods.split(",") if m]
@@ -788,10 +843,12 @@ def main(argv: list[str] | None = None) -> int:
     if args.json:
         args.json.write_text(json.dumps(_finite({"rows": rows, "records": records}), indent=1))
     if args.figures:
-        for path in write_figures(
-            args.figures, "heldout" if "heldout" in parts else parts[0] if parts[0] != "real" else "dev"
-        ):
-            print(f"wrote {path}", file=sys.stderr)
+        shown = "heldout" if "heldout" in parts else parts[0] if parts[0] != "real" else "dev"
+        written = write_figures(args.figures, shown)
+        written.append(write_score_figure(records, shown, args.figures / "segment-score.png"))
+        for path in written:
+            if path is not None:
+                print(f"wrote {path}", file=sys.stderr)
     return 0
 
 

@@ -427,3 +427,24 @@ def test_right_outlines_are_counted_apart_for_light_and_dark_rocks():
         {"part": "dev", "method": "rockscan", "kind": "all", "iou": None},
     ]
     assert bench.by_brightness(records, "dev") == {"lighter": (1, 2), "darker": (1, 1)}
+
+
+def _record(score: float, iou: float, part: str = "heldout") -> dict:
+    return {"part": part, "method": "rockscan", "kind": "one", "score": score, "iou": iou}
+
+
+def test_score_auroc_counts_right_above_wrong_and_ignores_the_middle():
+    records = [_record(0.9, 0.95), _record(0.3, 0.92), _record(0.5, 0.5), _record(0.1, 0.7)]
+    records += [_record(0.99, 0.85), _record(0.2, 0.99, part="dev")]
+    # Right (0.9, 0.3) against wrong (0.5, 0.1): three of the four pairs ranked right.
+    assert bench.score_auroc(records, "heldout") == (0.75, 2, 2)
+
+
+def test_the_score_figure_is_a_png_and_none_without_scores(tmp_path):
+    rng = np.random.default_rng(0)
+    records = [_record(float(s), float(i)) for s, i in rng.uniform(size=(60, 2))]
+    path = bench.write_score_figure(records, "heldout", tmp_path / "score.png")
+    assert path == tmp_path / "score.png"
+    assert path.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    assert bench.write_score_figure(records, "dev", tmp_path / "none.png") is None
+    assert not (tmp_path / "none.png").exists()
