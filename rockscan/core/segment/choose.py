@@ -7,9 +7,7 @@ the centre and from the outline's core, outlines with touching pebbles
 opened off). Each is measured by what a person would look at:
 
 * how well the photo supports its outline (its segmentation score and the
-  evidence behind it, ``rockscan.core.segment.score``), and how even its
-  inside is (in a channel that noise dominates on the rock, such as a dark
-  rock's chromaticity, the inside spreads and the outline is ragged);
+  evidence behind it, ``rockscan.core.segment.score``);
 * how clearly its region stood out when it was detected;
 * where it lies: distance of its centroid from the frame's centre, whether
   it covers the centre (a photo of one rock is framed on it, a crop is
@@ -32,7 +30,11 @@ outlines the rock (intersection over union >= 0.9), and the most probable
 wins: gradient-boosted regression trees (:func:`choice_probabilities`),
 fitted on the development part of the segmentation benchmark
 (``scripts/fit_segment_choice.py``, which also fits the one-weight-per-feature
-logistic model they replaced, as a baseline). The winner's probability,
+logistic model they replaced, as a baseline). One rule stands beside the
+model: a chromaticity outline whose inside is much less even than a
+luminance outline's of the same object yields to it (:func:`_luminance_if_even`;
+the model judges each candidate alone and cannot compare the two). The
+winner's probability,
 read with the rest of the choice (``rockscan.core.segment.confidence``),
 becomes the rock's segmentation score: it ranks right outlines above wrong
 ones better than the outline's own evidence.
