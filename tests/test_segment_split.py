@@ -352,3 +352,34 @@ def test_a_ground_on_one_side_of_the_rock_is_read_as_one_level(left, right):
 
     flat, mask, inside, ring = _disc_on_ramp(left, right)
     assert _two_sided_ground(flat, ring, mask, float(np.median(flat[inside]))) is None
+
+
+def test_all_rocks_finds_a_rock_of_another_hue_beside_a_lighter_one():
+    # A gray ground, a rock lighter than it, and a rock of the ground's own
+    # luminance that differs from it in hue only: brightness sees one rock,
+    # the chromaticity the other.
+    shape = (200, 320)
+    light = coverage(shape, (100, 90), (38, 44))
+    hued = coverage(shape, (100, 230), (40, 36))
+    ground = np.array([0.45, 0.45, 0.45])
+    red = np.array([0.62, 0.38, 0.45])
+    # The same luminance as the ground (BT.601 weights).
+    red *= float(ground @ [0.299, 0.587, 0.114]) / float(red @ [0.299, 0.587, 0.114])
+    rng = np.random.default_rng(5)
+    image = np.broadcast_to(ground, (*shape, 3)).copy()
+    image = image * (1 - light[..., None]) + 0.8 * light[..., None]
+    image = image * (1 - hued[..., None]) + red * hued[..., None]
+    image += rng.normal(0.0, 0.01, image.shape)
+    pixels = np.clip(np.round(image * 255), 0, 255).astype(np.uint8)
+
+    seg = segment(pixels, all_rocks=True)
+    assert seg.n_rocks == 2
+    # Labels at working size, as photo pixels (nearest label).
+    rows = np.minimum((np.arange(shape[0]) / seg.scale_rowcol[0]).astype(int), seg.labels.shape[0] - 1)
+    cols = np.minimum((np.arange(shape[1]) / seg.scale_rowcol[1]).astype(int), seg.labels.shape[1] - 1)
+    labels = seg.labels[rows[:, None], cols[None, :]]
+    for truth in (light > 0.5, hued > 0.5):
+        found = np.bincount(labels[truth], minlength=3)[1:].argmax() + 1
+        inter = (labels == found) & truth
+        union = (labels == found) | truth
+        assert inter.sum() / union.sum() > 0.85

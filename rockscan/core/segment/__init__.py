@@ -57,6 +57,10 @@ Steps (see :func:`segment`):
    as a large one, and a band of ground that outscores every rock does not
    set the standard alone. Each is cut so, and every part whose area is at
    least ``min_relative_area`` of the largest is a rock, by decreasing area.
+   Rocks of a later channel (chromaticity, after luminance) are added where
+   they lie mostly (``FREE_SHARE``) outside every rock found before: a scene
+   can hold rocks that differ from the ground in brightness and others that
+   differ in hue only.
 6. **Outline.** In a window around each rock, at working size, after a
    ``smooth_sigma`` Gaussian, the rock's level is the median inside the
    detected region (less a margin) and the ground's the median of a ring
@@ -520,14 +524,14 @@ def _candidate_pool(
     )
     best: tuple[float, Segmentation, float] | None = None
     pool: list[tuple[Segmentation, float, str]] = []
+    if all_rocks:
+        every = _every_rock(small, outline, config)
+        if every is None:
+            raise NoRockFoundError("no rock found: nothing stands out from the ground")
+        return every
     for channel in _channels(small):
         detection = _detect(channel.values(small), channel, config, all_rocks)
         if detection is None:
-            continue
-        if all_rocks:
-            found = outline(detection)
-            if found is not None:
-                return _blobs_parted(found)
             continue
         rivals_seen = bool(pool)
         for candidate in _candidates(detection):
@@ -659,13 +663,20 @@ class _Outliner:
     #: The working image, its scale and the detection of each segmentation made.
     works: dict = dataclasses.field(default_factory=dict)
 
-    def __call__(self, detection: _Detection) -> Segmentation | None:
-        config = self.config
-        # Outline on an image where the smallest rock found spans about
-        # outline_radius pixels: finer costs time and adds nothing to its shape.
+    def work_scale(self, detection: _Detection) -> float:
+        """Photo pixels per working pixel for a detection's rocks.
+
+        Outlines are traced on an image where the smallest rock found spans
+        about ``outline_radius`` pixels: finer costs time and adds nothing to its shape.
+        """
         smallest = min(int(r.sum()) for r in detection.regions)
         radius_photo = math.sqrt(smallest / math.pi) * self.detect_scale
-        work_scale = min(max(self.largest_scale, radius_photo / config.outline_radius), self.detect_scale)
+        return min(max(self.largest_scale, radius_photo / self.config.outline_radius), self.detect_scale)
+
+    def __call__(self, detection: _Detection, work_scale: float | None = None) -> Segmentation | None:
+        config = self.config
+        if work_scale is None:
+            work_scale = self.work_scale(detection)
         work, covered = _at_scale(self.levels, work_scale)
         scale_rowcol = (covered[0] / work.shape[0], covered[1] / work.shape[1])
         # Working pixels per detection pixel, each image over the photo pixels it covers.
@@ -737,6 +748,61 @@ def _whole(rock: RockMask, shape: tuple[int, int]) -> NDArray[np.bool_]:
     r0, c0 = rock.origin_rowcol
     whole[r0 : r0 + rock.mask.shape[0], c0 : c0 + rock.mask.shape[1]] = rock.mask
     return whole
+
+
+def _every_rock(small: NDArray[np.float32], outline: _Outliner, config: SegmentConfig) -> Segmentation | None:
+    """Every rock of a photo (``all_rocks``; module docstring, step 5), or None.
+
+    The rocks of the first channel that shows any, and those of a later
+    channel (chromaticity after luminance) that lie where no earlier rock is:
+    a rock that differs from its ground in hue only is no rock to luminance,
+    and a scene can hold both kinds. Each channel's rocks are outlined on one
+    working image, at the scale its smallest rock asks for.
+    """
+    detections = []
+    for channel in _channels(small):
+        detection = _detect(channel.values(small), channel, config, True)
+        if detection is not None:
+            detections.append(detection)
+    if not detections:
+        return None
+    scale = min(outline.work_scale(d) for d in detections)
+    found = [f for d in detections if (f := outline(d, work_scale=scale)) is not None]
+    if not found:
+        return None
+    first, *later = (_blobs_parted(f) for f in found)
+    rocks = list(first.rocks)
+    taken = first.labels > 0
+    for other in later:
+        for rock in other.rocks:
+            part = _where_free(rock, taken)
+            if part is not None:
+                rocks.append(part)
+                taken |= _whole(part, taken.shape)
+    if len(rocks) == len(first.rocks):
+        return first
+    return _assemble(rocks, first.labels.shape, first.scale_rowcol, first.polarity, first.channel)
+
+
+#: Least share of a later channel's rock that must lie where no earlier rock
+#: is for it to count. Chosen on the development crowded scenes, where 0.8 and
+#: 0.95 find the same rocks within 0.2% of them; what overlaps more is a rock
+#: already found, outlined again.
+FREE_SHARE = 0.8
+
+
+def _where_free(rock: RockMask, taken: NDArray[np.bool_]) -> RockMask | None:
+    """The rock less what ``taken`` holds, if at least ``FREE_SHARE`` of it is free; else None."""
+    r0, c0 = rock.origin_rowcol
+    h, w = rock.mask.shape
+    free = ~taken[r0 : r0 + h, c0 : c0 + w]
+    if float((rock.mask & free).sum()) < FREE_SHARE * float(rock.mask.sum()):
+        return None
+    mask = largest_part(rock.mask & free)
+    if mask is None:
+        return None
+    # Its outline stops where the earlier rock begins.
+    return dataclasses.replace(rock, mask=mask, coverage=(rock.coverage * free).astype(np.float32))
 
 
 def _blobs_parted(found: Segmentation) -> Segmentation:

@@ -115,7 +115,7 @@ class _Channel:
 def _channels(small: NDArray[np.float32]) -> Iterator[_Channel]:
     """Candidate channels, learnt from the detection image (module docstring, step 2).
 
-    A generator: the chromaticity is only worked out if luminance finds no rock.
+    A generator: the chromaticity is only worked out when the caller asks past luminance.
     """
     yield _Channel("luminance", True)
     if small.ndim == 2:
