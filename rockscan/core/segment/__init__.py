@@ -525,7 +525,7 @@ def _candidate_pool(
     best: tuple[float, Segmentation, float] | None = None
     pool: list[tuple[Segmentation, float, str]] = []
     if all_rocks:
-        every = _every_rock(small, outline, config)
+        every = _rocks_of_every_channel(small, outline, config)
         if every is None:
             raise NoRockFoundError("no rock found: nothing stands out from the ground")
         return every
@@ -750,14 +750,16 @@ def _whole(rock: RockMask, shape: tuple[int, int]) -> NDArray[np.bool_]:
     return whole
 
 
-def _every_rock(small: NDArray[np.float32], outline: _Outliner, config: SegmentConfig) -> Segmentation | None:
+def _rocks_of_every_channel(
+    small: NDArray[np.float32], outline: _Outliner, config: SegmentConfig
+) -> Segmentation | None:
     """Every rock of a photo (``all_rocks``; module docstring, step 5), or None.
 
     The rocks of the first channel that shows any, and those of a later
     channel (chromaticity after luminance) that lie where no earlier rock is:
     a rock that differs from its ground in hue only is no rock to luminance,
-    and a scene can hold both kinds. Each channel's rocks are outlined on one
-    working image, at the scale its smallest rock asks for.
+    and a scene can hold both kinds. Every channel's rocks are outlined on
+    one working image, at the scale the smallest of them asks for.
     """
     detections = []
     for channel in _channels(small):
