@@ -17,7 +17,7 @@ from test_segment import coverage, photo_of
 import rockscan.run.pipeline
 from rockscan.core.segment import CONFIDENT_SCORE, segment
 from rockscan.core.segment.score import outline_evidence, outline_score
-from rockscan.core.segment.split import rejoined, split_necks, split_rocks, territories
+from rockscan.core.segment.split import rejoined, split_colours, split_necks, split_rocks, territories
 from rockscan.run.pipeline import classify_image, measure_rocks
 
 # ---------------------------------------------------------------- touching rocks
@@ -383,3 +383,54 @@ def test_all_rocks_finds_a_rock_of_another_hue_beside_a_lighter_one():
         inter = (labels == found) & truth
         union = (labels == found) | truth
         assert inter.sum() / union.sum() > 0.85
+
+
+def _two_discs(shape, centers, radius):
+    yy, xx = np.mgrid[: shape[0], : shape[1]]
+    return [(yy - r) ** 2 + (xx - c) ** 2 <= radius**2 for r, c in centers]
+
+
+def _painted(shape, masks, colours, ground=(0.45, 0.45, 0.45), texture=0.0, seed=0):
+    """An RGB photo in [0, 1]: each mask in its colour, its brightness varied by ``texture``."""
+    rng = np.random.default_rng(seed)
+    rgb = np.broadcast_to(np.array(ground, np.float32), (*shape, 3)).copy()
+    for mask, colour in zip(masks, colours, strict=True):
+        rgb[mask] = colour
+    shade = 1.0 + texture * rng.normal(0.0, 1.0, shape)
+    return np.clip(rgb * shade[..., None].astype(np.float32) + rng.normal(0.0, 0.01, rgb.shape), 0, 1).astype(
+        np.float32
+    )
+
+
+def test_split_colours_cuts_two_touching_rocks_of_different_hue_along_their_contact():
+    shape = (120, 200)
+    left, right = _two_discs(shape, [(60, 70), (60, 130)], 36)
+    pixels = _painted(shape, [left, right], [(0.7, 0.45, 0.35), (0.4, 0.5, 0.7)], texture=0.1)
+    parts = split_colours(left | right, pixels)
+    assert len(parts) == 2
+    for part in parts:
+        truth = left if part[60, 50] else right
+        assert (part & truth).sum() / (part | truth).sum() > 0.9
+
+
+def test_split_colours_keeps_one_colour_a_convex_two_coloured_rock_and_a_gray_photo_whole():
+    shape = (120, 200)
+    left, right = _two_discs(shape, [(60, 70), (60, 130)], 36)
+    both = left | right
+    textured = _painted(shape, [both], [(0.7, 0.45, 0.35)], texture=0.25)
+    assert len(split_colours(both, textured)) == 1
+    # A disc half red, half blue: convex, so one rock whatever its colours.
+    (disc,) = _two_discs(shape, [(60, 100)], 50)
+    half = disc & (np.arange(shape[1])[None, :] < 100)
+    two_toned = _painted(shape, [disc, half], [(0.4, 0.5, 0.7), (0.7, 0.45, 0.35)])
+    assert len(split_colours(disc, two_toned)) == 1
+    gray = _painted(shape, [left, right], [(0.7, 0.7, 0.7), (0.3, 0.3, 0.3)])
+    assert len(split_colours(both, gray)) == 1
+
+
+def test_all_rocks_parts_touching_rocks_of_different_hue():
+    shape = (160, 240)
+    left, right = _two_discs(shape, [(80, 85), (80, 150)], 40)
+    pixels = _painted(shape, [left, right], [(0.75, 0.5, 0.4), (0.45, 0.6, 0.8)], ground=(0.3, 0.3, 0.3))
+    seg = segment(np.round(pixels * 255).astype(np.uint8), all_rocks=True)
+    assert seg.n_rocks == 2

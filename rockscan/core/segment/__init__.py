@@ -60,7 +60,9 @@ Steps (see :func:`segment`):
    Rocks of a later channel (chromaticity, after luminance) are added where
    they lie mostly (``FREE_SHARE``) outside every rock found before: a scene
    can hold rocks that differ from the ground in brightness and others that
-   differ in hue only.
+   differ in hue only. In a colour photo, an outline that is not convex and
+   holds two clearly different colours, each in one piece, is cut between
+   them (``split.split_colours``): touching rocks of different hues.
 6. **Outline.** In a window around each rock, at working size, after a
    ``smooth_sigma`` Gaussian, the rock's level is the median inside the
    detected region (less a margin) and the ground's the median of a ring
@@ -144,7 +146,14 @@ from rockscan.core.segment.rim import rim_on
 from rockscan.core.segment.score import WEIGHTS, OutlineEvidence, outline_score
 from rockscan.core.segment.shadow import MIN_AREA as SHADOW_MIN_AREA
 from rockscan.core.segment.shadow import measured_region, shadow_left_out, shadow_off
-from rockscan.core.segment.split import largest_part, opened, split_blobs, split_necks, territories
+from rockscan.core.segment.split import (
+    largest_part,
+    opened,
+    split_blobs,
+    split_colours,
+    split_necks,
+    territories,
+)
 from rockscan.core.segment.stats import bounding_box
 from rockscan.core.segment.trace import (
     RING,
@@ -772,7 +781,7 @@ def _rocks_of_every_channel(
     found = [f for d in detections if (f := outline(d, work_scale=scale)) is not None]
     if not found:
         return None
-    first, *later = (_blobs_parted(f) for f in found)
+    first, *later = (_parted(f, outline.works[id(f)][0], outline.dtype) for f in found)
     rocks = list(first.rocks)
     taken = first.labels > 0
     for other in later:
@@ -807,22 +816,29 @@ def _where_free(rock: RockMask, taken: NDArray[np.bool_]) -> RockMask | None:
     return dataclasses.replace(rock, mask=mask, coverage=(rock.coverage * free).astype(np.float32))
 
 
-def _blobs_parted(found: Segmentation) -> Segmentation:
-    """Every outlined rock that is several compact blobs cut into them (``split.split_blobs``).
+def _parted(found: Segmentation, work: NDArray[np.generic], dtype: np.dtype) -> Segmentation:
+    """Every outlined rock that is several compact blobs (``split.split_blobs``),
+    or several rocks of clearly different colours (``split.split_colours``; colour
+    photos), cut into them.
 
-    A blob keeps the coverage of its territory within the rock's window and
+    A part keeps the coverage of its territory within the rock's window and
     the score of the outline it was cut from.
     """
     rocks = []
     for rock in found.rocks:
-        blobs = split_blobs(rock.mask)
-        if len(blobs) == 1:
+        parts = split_blobs(rock.mask)
+        if work.ndim == 3:
+            r0, c0 = rock.origin_rowcol
+            h, w = rock.mask.shape
+            rgb = _unit(np.ascontiguousarray(work[r0 : r0 + h, c0 : c0 + w, :3]), dtype)
+            parts = [piece for part in parts for piece in split_colours(part, rgb)]
+        if len(parts) == 1:
             rocks.append(rock)
             continue
-        owners = territories(blobs)
-        for index, blob in enumerate(blobs, start=1):
+        owners = territories(parts)
+        for index, part in enumerate(parts, start=1):
             coverage = (rock.coverage * (owners == index)).astype(np.float32)
-            rocks.append(dataclasses.replace(rock, mask=blob, coverage=coverage))
+            rocks.append(dataclasses.replace(rock, mask=part, coverage=coverage))
     if len(rocks) == len(found.rocks):
         return found
     return _assemble(rocks, found.labels.shape, found.scale_rowcol, found.polarity, found.channel)
