@@ -201,9 +201,9 @@ def split_colours(mask: NDArray[np.bool_], rgb: NDArray[np.float32]) -> list[NDA
     deviations apart (and at least ``COLOUR_STEP``), each covers at least
     ``COLOUR_MIN_SHARE`` of it, and each is one piece (``COLOUR_COHERENCE``);
     they are cut along the border between the two colours' territories. A
-    convex outline (solidity ``CONVEX_CELL``) is one rock whatever its
-    colours: touching rocks leave notches where they meet, a two-coloured
-    rock does not. Each part is looked at again, up to ``COLOUR_DEPTH`` times.
+    convex outline (solidity at least ``CONVEX_CELL``) is one rock whatever
+    its colours: touching rocks leave notches where they meet, a
+    two-coloured rock does not. Each part is looked at again, up to ``COLOUR_DEPTH`` times.
 
     Parameters
     ----------
