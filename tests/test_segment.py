@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from hypothesis import given
+from hypothesis import example, given, settings
 from hypothesis import strategies as st
 from skimage.draw import polygon2mask
 
@@ -306,3 +306,34 @@ def test_turning_the_photo_turns_the_outline(turns, seed):
         rows, cols = cols, rows
     np.testing.assert_allclose(turned.centroid_rowcol, (r, c), atol=0.25)
     assert turned.area_px == pytest.approx(base.area_px, rel=0.015)
+
+
+_colour = st.tuples(st.integers(0, 255), st.integers(0, 255), st.integers(0, 255))
+
+
+@settings(max_examples=40, deadline=None)
+@given(
+    rows=st.integers(8, 64),
+    cols=st.integers(8, 64),
+    ground=_colour,
+    patch=_colour,
+    all_rocks=st.booleans(),
+)
+# A pure red patch on a flat green ground: a region's contrast so even that
+# float32 held no 64 histogram bins across it, which once raised from numpy.
+@example(rows=13, cols=23, ground=(6, 253, 108), patch=(255, 0, 0), all_rocks=False)
+@example(rows=13, cols=23, ground=(6, 253, 108), patch=(255, 0, 0), all_rocks=True)
+def test_a_flat_photo_with_a_patch_segments_or_finds_no_rock(rows, cols, ground, patch, all_rocks):
+    pixels = np.empty((rows, cols, 3), np.uint8)
+    pixels[:] = ground
+    pixels[rows // 3 : 2 * rows // 3, cols // 3 : 2 * cols // 3] = patch
+    if ground == patch:
+        with pytest.raises(NoRockFoundError):
+            segment(pixels, all_rocks=all_rocks)
+        return
+    try:
+        seg = segment(pixels, all_rocks=all_rocks)
+    except NoRockFoundError:
+        return
+    assert seg.n_rocks >= 1
+    assert all(rock.mask.any() for rock in seg.rocks)

@@ -500,7 +500,11 @@ def _split(
 
 def _otsu(values: NDArray[np.float32]) -> tuple[float, float]:
     """Otsu's threshold of some values, and its separation (between-class over total variance)."""
-    hist, edges = np.histogram(values, bins=64)
+    try:
+        hist, edges = np.histogram(values, bins=64)
+    except ValueError:
+        # Values all but equal (float32 holds no 64 bins between them): one level.
+        return float(values.min()), 0.0
     centers = 0.5 * (edges[:-1] + edges[1:])
     w0 = np.cumsum(hist).astype(np.float64)
     w1 = w0[-1] - w0
