@@ -536,7 +536,7 @@ def _candidate_pool(
     if all_rocks:
         every = _rocks_of_every_channel(small, outline, config)
         if every is None:
-            raise NoRockFoundError("no rock found: nothing stands out from the ground")
+            raise NoRockFoundError(_NOTHING_FOUND)
         return every
     for channel in _channels(small):
         detection = _detect(channel.values(small), channel, config, all_rocks)
@@ -566,11 +566,14 @@ def _candidate_pool(
             if best is None or key > best[0]:
                 best = (key, found, candidate.score)
     if best is None:
-        raise NoRockFoundError("no rock found: nothing stands out from the ground")
+        raise NoRockFoundError(_NOTHING_FOUND)
     # The refinements start from the outline the photo supports best.
     _, incumbent, detection_score = best
     return _Pool(pool, outline, (incumbent, detection_score))
 
+
+#: Why no rock was found when no channel shows a region standing out.
+_NOTHING_FOUND = "no rock found: nothing stands out from the ground"
 
 #: A main rock's segmentation score from which no other candidate is tried (the fast path).
 #: Chosen on the development part: at 0.995 it stops on half the photos and

@@ -56,6 +56,7 @@ from numpy.typing import NDArray
 
 from rockscan.core.segment import choice_model
 from rockscan.core.segment.pebbles import pebble_share
+from rockscan.core.segment.stats import logit
 from rockscan.core.segment.types import Segmentation
 
 __all__ = [
@@ -210,13 +211,12 @@ def _features(
             share = ys.size / mask.size
         else:
             centre, share = 0.75, 0.0
-        score = min(max(rock.score, 1e-4), 1.0 - 1e-4)
         # Solidity stays out: the rocks it was fitted on are blobs, and a
         # star's arms must not count against it (the outline score weighs it).
         evidence = list(rock.evidence[:5]) if len(rock.evidence) == 6 else [0.0, 1.0, 1.0, 1.0, 0.0]
         rows.append(
             [
-                math.log(score / (1.0 - score)),
+                logit(rock.score),
                 *evidence,
                 math.log(max(detected, 1e-6)),
                 centre,

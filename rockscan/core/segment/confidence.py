@@ -28,12 +28,11 @@ real photo more evidence for an outline must never count against it.
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
 from numpy.typing import NDArray
 
 from rockscan.core.segment.choose import FEATURES, MONOTONE, Ranking
+from rockscan.core.segment.stats import logistic, logit
 
 __all__ = ["CONFIDENCE_FEATURES", "SIGNS", "confidence_features", "outline_confidence"]
 
@@ -100,11 +99,6 @@ INTERCEPT = 1.39787
 # END FITTED
 
 
-def _logit(p: float) -> float:
-    p = min(max(float(p), 1e-4), 1.0 - 1e-4)
-    return math.log(p / (1.0 - p))
-
-
 def confidence_features(ranking: Ranking, detected_best: float) -> NDArray[np.float64]:
     """The score's features of a choice among the whole pool (module docstring).
 
@@ -127,12 +121,12 @@ def confidence_features(ranking: Ranking, detected_best: float) -> NDArray[np.fl
     own = ranking.features[ranking.index, : len(_OWN)]
     return np.array(
         [
-            _logit(p.max()),
-            _logit(p[rivals].max() if rivals.any() else 0.0),
-            _logit(p[agreeing].mean()),
+            logit(p.max()),
+            logit(p[rivals].max() if rivals.any() else 0.0),
+            logit(p[agreeing].mean()),
             float(agreeing.sum()),
             float(p.size),
-            _logit(detected_best),
+            logit(detected_best),
             *own,
         ]
     )
@@ -146,5 +140,4 @@ def outline_confidence(features: NDArray[np.float64]) -> float:
     features : (len(CONFIDENCE_FEATURES),) ndarray
         :func:`confidence_features` of the choice.
     """
-    t = float(INTERCEPT + WEIGHTS @ np.asarray(features, dtype=np.float64))
-    return 1.0 / (1.0 + math.exp(-max(min(t, 50.0), -50.0)))
+    return logistic(float(INTERCEPT + WEIGHTS @ np.asarray(features, dtype=np.float64)))

@@ -26,7 +26,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-from rockscan.core.segment.stats import robust_spread
+from rockscan.core.segment.stats import logistic, robust_spread
 
 __all__ = ["OutlineEvidence", "outline_evidence", "outline_score"]
 
@@ -95,8 +95,7 @@ INTERCEPT = -5.5
 
 def outline_score(evidence: OutlineEvidence) -> float:
     """The logistic score in [0, 1] of an outline's evidence (higher: more likely right)."""
-    t = float(INTERCEPT + WEIGHTS @ evidence.as_array())
-    return 1.0 / (1.0 + math.exp(-max(min(t, 50.0), -50.0)))
+    return logistic(float(INTERCEPT + WEIGHTS @ evidence.as_array()))
 
 
 def outline_evidence(

@@ -219,18 +219,26 @@ def split_colours(mask: NDArray[np.bool_], rgb: NDArray[np.float32]) -> list[NDA
     """
     import cv2
 
-    if int(mask.sum()) < _COLOUR_LEAST_AREA or _solidity(mask) >= CONVEX_CELL:
-        return [mask]
-    chroma = cv2.GaussianBlur(np.ascontiguousarray(rgb, np.float32), (0, 0), _COLOUR_SIGMA)
-    total = chroma.sum(axis=2) + 1e-3
-    chroma = np.stack([chroma[..., 0] / total, chroma[..., 1] / total], axis=-1)
+    chroma = None
+    # Each round looks only at the parts the last one cut (a part left whole stays so).
+    whole: list[NDArray[np.bool_]] = []
     parts = [mask]
     for _ in range(COLOUR_DEPTH):
-        cut = [piece for part in parts for piece in _two_colours(part, chroma)]
-        if len(cut) == len(parts):
-            break
+        cut = []
+        for part in parts:
+            if int(part.sum()) < _COLOUR_LEAST_AREA or _solidity(part) >= CONVEX_CELL:
+                whole.append(part)
+                continue
+            if chroma is None:
+                blurred = cv2.GaussianBlur(np.ascontiguousarray(rgb, np.float32), (0, 0), _COLOUR_SIGMA)
+                total = blurred.sum(axis=2) + 1e-3
+                chroma = np.stack([blurred[..., 0] / total, blurred[..., 1] / total], axis=-1)
+            pieces = _two_colours(part, chroma)
+            (cut if len(pieces) > 1 else whole).extend(pieces)
         parts = cut
-    return parts
+        if not parts:
+            break
+    return whole + parts
 
 
 #: Smoothing of the colours before they are compared, in pixels (noise, JPEG's half-resolution colour).
@@ -240,13 +248,12 @@ _COLOUR_LEAST_AREA = 200
 
 
 def _two_colours(mask: NDArray[np.bool_], chroma: NDArray[np.float32]) -> list[NDArray[np.bool_]]:
-    """One cut of :func:`split_colours`: the two parts, or ``[mask]``."""
+    """One cut of :func:`split_colours` of a part it found neither small nor convex:
+    the two parts, or ``[mask]``."""
     import cv2
     from skimage.filters import threshold_otsu
 
     area = int(mask.sum())
-    if area < _COLOUR_LEAST_AREA or _solidity(mask) >= CONVEX_CELL:
-        return [mask]
     inner = cv2.erode(mask.astype(np.uint8), np.ones((5, 5), np.uint8)) > 0
     if inner.sum() < 100:
         return [mask]

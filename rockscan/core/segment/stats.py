@@ -2,13 +2,26 @@
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 from numpy.typing import NDArray
 
-__all__ = ["bounding_box", "label_maxima", "robust_spread"]
+__all__ = ["bounding_box", "label_maxima", "logistic", "logit", "robust_spread"]
 
 #: The median absolute deviation of a normal distribution times this is its standard deviation.
 MAD_TO_SIGMA = 1.4826
+
+
+def logit(p: float) -> float:
+    """Log-odds of a probability, held within 1e-4 of 0 and 1 (a certainty is no finite feature)."""
+    p = min(max(float(p), 1e-4), 1.0 - 1e-4)
+    return math.log(p / (1.0 - p))
+
+
+def logistic(t: float) -> float:
+    """The probability of log-odds ``t`` (beyond +-50 it is 0 or 1 to float precision)."""
+    return 1.0 / (1.0 + math.exp(-max(min(float(t), 50.0), -50.0)))
 
 
 def robust_spread(values: NDArray[np.floating], median: float | None = None) -> float:
