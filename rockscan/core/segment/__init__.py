@@ -68,10 +68,11 @@ Steps (see :func:`segment`):
    detected region (less a margin) and the ground's the median of a ring
    around it, away from other outliers. In gray photos the level is read from
    the flattened brightness; in colour along Fisher's discriminant of the
-   flattened brightness and the smoothed hue (red and blue less luminance),
-   so that a rock's hue counts as well as its brightness and ground texture,
-   which mostly varies the ground's brightness, counts less; brightness keeps
-   at least half of the step, so that the outline stays at its sharp edge
+   flattened brightness and the smoothed hue (red and blue less luminance,
+   over the brightness), so that a rock's hue counts as well as its
+   brightness, on its shaded side too, and ground texture, which mostly
+   varies the ground's brightness, counts less; brightness keeps at least a
+   quarter of the step, so that the outline stays near its sharp edge
    rather than the smoothed hue's. Half-way between
    rock and ground is where a blurred step edge lies, whatever the blur.
    Pixels clipped by the sensor on a light rock count as rock. The connected
