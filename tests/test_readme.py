@@ -58,6 +58,55 @@ def test_every_rockscan_command_of_the_readme_runs(tmp_path):
         assert "Traceback" not in done.stderr, command
 
 
+_ROW = re.compile(
+    r"^(\S+)\s+(\d+)\s+(\S+)\s+(\S+)\s+([\d.]+)\s+([\d.e+-]+)\s+([\d.]+)\s+\(([\d.]+), ([\d.]+)\)$"
+)
+
+
+def _rows(text: str) -> dict[str, tuple]:
+    """The rows of a printed classify table, by photo: rock, match, nearest and the numbers."""
+    rows = {}
+    for line in text.splitlines():
+        found = _ROW.match(line.strip())
+        if found:
+            photo, rock, match, nearest, *numbers = found.groups()
+            rows[photo] = (int(rock), match, nearest, *(float(v) for v in numbers))
+    return rows
+
+
+def test_the_quick_start_prints_what_the_readme_shows(tmp_path):
+    # The first command's output block, right after it: the table a new user
+    # compares theirs with. Names exactly; numbers to the precision that
+    # BLAS threads and platforms leave alike, far below what a change to
+    # segmentation or matching moves.
+    text = (ROOT / "README.md").read_text(encoding="utf-8")
+    found = re.search(r"```bash\n(.*?)```\s*```\n(.*?)```", text, flags=re.S)
+    assert found, "the README shows the quick start's output"
+    command = readme_commands(f"```bash\n{found.group(1)}```")[0]
+    printed = _rows(found.group(2))
+    assert len(printed) >= 2, found.group(2)
+    shutil.copytree(ROOT / "data", tmp_path / "data", ignore=shutil.ignore_patterns("__pycache__"))
+    # As wide as the terminal the README's table was printed on: narrower, photo names are cut short.
+    env = {
+        **os.environ,
+        "COLUMNS": "200",
+        "PATH": f"{Path(sys.executable).parent}{os.pathsep}{os.environ.get('PATH', '')}",
+    }
+    done = subprocess.run(
+        ["bash", "-c", command], cwd=tmp_path, env=env, capture_output=True, text=True, timeout=600
+    )
+    assert done.returncode == 0, done.stderr
+    got = _rows(done.stdout)
+    assert got.keys() == printed.keys(), done.stdout
+    for photo, (rock, match, nearest, mscore, distance, angle, x, y) in printed.items():
+        assert got[photo][:3] == (rock, match, nearest), photo
+        g_mscore, g_distance, g_angle, g_x, g_y = got[photo][3:]
+        assert g_mscore == pytest.approx(mscore, abs=2e-3), photo
+        assert g_distance == pytest.approx(distance, rel=0.02, abs=2e-5), photo
+        assert g_angle == pytest.approx(angle, abs=0.5), photo
+        assert (g_x, g_y) == pytest.approx((x, y), abs=0.2), photo
+
+
 def test_the_python_example_runs(monkeypatch, capsys):
     text = (ROOT / "README.md").read_text(encoding="utf-8")
     blocks = re.findall(r"```python\n(.*?)```", text, flags=re.S)
