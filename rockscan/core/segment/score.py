@@ -98,6 +98,17 @@ def outline_score(evidence: OutlineEvidence) -> float:
     return logistic(float(INTERCEPT + WEIGHTS @ evidence.as_array()))
 
 
+def _box_sums(
+    image: NDArray[np.generic], box: tuple[NDArray[np.intp], ...], depth: int
+) -> NDArray[np.float64]:
+    """Sums of ``image`` over boxes (rows r0:r1, cols c0:c1, each array one box per entry)."""
+    import cv2
+
+    r0, r1, c0, c1 = box
+    total = cv2.integral(image, sdepth=depth)
+    return (total[r1, c1] - total[r0, c1] - total[r1, c0] + total[r0, c0]).astype(np.float64)
+
+
 def outline_evidence(
     level: NDArray[np.float32], mask: NDArray[np.bool_], frame_sides: tuple[bool, bool, bool, bool]
 ) -> OutlineEvidence:
@@ -154,12 +165,16 @@ def outline_evidence(
     inside_px = boundary & ~on_frame
     n_boundary = int(boundary.sum())
     frame = float(frame_px.sum()) / max(n_boundary, 1)
-    size = (2 * reach + 1, 2 * reach + 1)
-    in_n = cv2.boxFilter(inner.astype(np.float32), -1, size, normalize=False)
-    in_s = cv2.boxFilter(lv * inner, -1, size, normalize=False)
-    out_n = cv2.boxFilter(outer.astype(np.float32), -1, size, normalize=False)
-    out_s = cv2.boxFilter(lv * outer, -1, size, normalize=False)
-    at = inside_px & (in_n > 0) & (out_n > 0)
+    # The bands' sums in a box round each boundary pixel, from integral
+    # images: only the boundary's boxes are needed, not every pixel's. The
+    # padding keeps every such box inside the window.
+    rows_at, cols_at = np.nonzero(inside_px)
+    box = (rows_at - reach, rows_at + reach + 1, cols_at - reach, cols_at + reach + 1)
+    in_n = _box_sums(inner, box, cv2.CV_32S)
+    in_s = _box_sums(lv * inner, box, cv2.CV_64F)
+    out_n = _box_sums(outer, box, cv2.CV_32S)
+    out_s = _box_sums(lv * outer, box, cv2.CV_64F)
+    at = (in_n > 0) & (out_n > 0)
     if at.sum() < 4:
         support, weak, outside = 0.0, 1.0, 1.0
     else:
