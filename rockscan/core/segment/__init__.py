@@ -100,10 +100,12 @@ Steps (see :func:`segment`):
    out is a cast shadow darker than the rock (``shadow.shadow_left_out``).
    A rock chosen among the whole pool is scored by how sure that choice is
    over the photo (``rockscan.core.segment.confidence``).
-8. **Pebbles off.** Round pieces that hang off the chosen outline at a neck
-   (touching pebbles, which join every cue's region) are cut off along
-   their contacts (``rockscan.core.segment.pebbles``); lobes all round it are
-   the rock's own shape and stay.
+8. **Pebbles and slivers off.** Round pieces that hang off the chosen outline
+   at a neck (touching pebbles, which join every cue's region) are cut off
+   along their contacts (``rockscan.core.segment.pebbles``); lobes all round
+   it are the rock's own shape and stay. Then thin bands that run off the
+   outline along a crevice, many times longer than wide and reaching well
+   away from the rock's body, are cut off (``rockscan.core.segment.slivers``).
 9. **Shadow off.** A cast shadow darker than half-way between the ground and
    a dark rock joins the rock's region; where the photo's log brightness,
    along rays from the rock's centre, rises a second time inside the
@@ -147,6 +149,7 @@ from rockscan.core.segment.rim import rim_on
 from rockscan.core.segment.score import WEIGHTS, OutlineEvidence, outline_score
 from rockscan.core.segment.shadow import MIN_AREA as SHADOW_MIN_AREA
 from rockscan.core.segment.shadow import measured_region, shadow_left_out, shadow_off
+from rockscan.core.segment.slivers import slivers_off
 from rockscan.core.segment.split import (
     largest_part,
     opened,
@@ -228,11 +231,11 @@ def segment(
 
 
 def _finished(found: Segmentation, pixels: NDArray[np.generic]) -> Segmentation:
-    """The main rock with touching pebbles cut off and its edges seen to (steps 8-10);
+    """The main rock with touching pebbles and slivers cut off and its edges seen to (steps 8-10);
     an outline an alpha channel gave stands as it is."""
     if found.channel == "alpha":
         return found
-    return _edges(_pebbles_off(found), pixels)
+    return _edges(_slivers_off(_pebbles_off(found)), pixels)
 
 
 def _main_rock(pixels: NDArray[np.generic], config: SegmentConfig, *, all_rocks: bool) -> Segmentation:
@@ -310,6 +313,12 @@ def _pebbles_off(found: Segmentation) -> Segmentation:
     """
     rock = found.rocks[0]
     return _main_cut(found, pebbles_off(rock.mask))
+
+
+def _slivers_off(found: Segmentation) -> Segmentation:
+    """The main rock with the thin slivers that run off it along a crevice
+    taken off (``slivers.slivers_off``); other rocks are left as they are."""
+    return _main_cut(found, slivers_off(found.rocks[0].mask))
 
 
 def _edges(found: Segmentation, pixels: NDArray[np.generic]) -> Segmentation:

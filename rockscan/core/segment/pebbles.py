@@ -30,7 +30,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-from rockscan.core.segment.split import largest_part, opened
+from rockscan.core.segment.split import Pieces, cut_back, opened_pieces
 from rockscan.core.segment.stats import label_maxima
 
 __all__ = ["lobed", "pebble_share", "pebbles_off"]
@@ -65,12 +65,9 @@ LOBES_SPREAD = 0.3
 
 @dataclass(frozen=True)
 class _Pieces:
-    """What an opening takes off a region: labelled pieces and what each is like."""
+    """What an opening takes off a region (``split.Pieces``), and what each piece is like."""
 
-    box: tuple[int, int, int, int]
-    region: NDArray[np.bool_]
-    body: NDArray[np.bool_]
-    labels: NDArray[np.int32]
+    opened: Pieces
     size: NDArray[np.float64]
     round_necked: NDArray[np.bool_]
 
@@ -80,22 +77,11 @@ def _pieces(mask: NDArray[np.bool_], share: float, *, by_distance: bool = False)
     and the pieces an opening of ``share`` takes off it; None if there are none."""
     import cv2
 
-    area = int(np.count_nonzero(mask))
-    if area < 30:
+    found = opened_pieces(mask, share, RADIUS, by_distance=by_distance)
+    if found is None:
         return None
-    rows, cols = np.flatnonzero(mask.any(axis=1)), np.flatnonzero(mask.any(axis=0))
-    box = (int(rows[0]), int(rows[-1]) + 1, int(cols[0]), int(cols[-1]) + 1)
-    region = mask[box[0] : box[1], box[2] : box[3]]
-    radius = math.sqrt(area / math.pi)
-    if radius > RADIUS:
-        scale = RADIUS / radius
-        shape = (max(1, round(region.shape[1] * scale)), max(1, round(region.shape[0] * scale)))
-        region = cv2.resize(region.astype(np.float32), shape, interpolation=cv2.INTER_AREA) >= 0.5
-    region = np.pad(region, 2)
-    body = opened(region, share, by_distance=by_distance)
-    if body is None:
-        return None
-    count, labels, stats, _ = cv2.connectedComponentsWithStats((region & ~body).astype(np.uint8))
+    region, body, labels, stats = found.region, found.body, found.labels, found.stats
+    count = stats.shape[0]
     # The pieces are apart, so one distance map gives each its inscribed radius.
     inside = labels > 0
     distance = cv2.distanceTransform(inside.astype(np.uint8), cv2.DIST_L2, 5)
@@ -109,7 +95,7 @@ def _pieces(mask: NDArray[np.bool_], share: float, *, by_distance: bool = False)
         & (2.0 * inscribed >= NECK * contact)
     )
     round_necked[0] = False
-    return _Pieces(box, region, body, labels, size, round_necked)
+    return _Pieces(found, size, round_necked)
 
 
 def pebble_share(mask: NDArray[np.bool_]) -> float:
@@ -139,7 +125,7 @@ def pebble_share(mask: NDArray[np.bool_]) -> float:
     # Superformula of high symmetry), not pebbles that happen to touch it.
     if pebbles.size >= LOBES and pebbles.max() <= LOBES_ALIKE * pebbles.min():
         return 0.0
-    return float(pebbles.sum() / found.region.sum())
+    return float(pebbles.sum() / found.opened.region.sum())
 
 
 def pebbles_off(mask: NDArray[np.bool_]) -> NDArray[np.bool_]:
@@ -164,7 +150,6 @@ def pebbles_off(mask: NDArray[np.bool_]) -> NDArray[np.bool_]:
         The largest part of the region left once the pebbles are off;
         ``mask`` itself when there are none.
     """
-    import cv2
 
     found = _pieces(mask, CUT_SHARE, by_distance=True)
     if found is None or not found.round_necked.any():
@@ -174,16 +159,7 @@ def pebbles_off(mask: NDArray[np.bool_]) -> NDArray[np.bool_]:
     alike = _alike(found, float(np.median(found.size[found.round_necked])))
     if alike.size >= LOBES and _all_round(found, alike):
         return mask
-    pebbles = found.round_necked[found.labels][2:-2, 2:-2]
-    r0, r1, c0, c1 = found.box
-    if pebbles.shape != (r1 - r0, c1 - c0):
-        pebbles = (
-            cv2.resize(pebbles.astype(np.float32), (c1 - c0, r1 - r0), interpolation=cv2.INTER_LINEAR) >= 0.5
-        )
-    kept = mask.copy()
-    kept[r0:r1, c0:c1] &= ~pebbles
-    part = largest_part(kept)
-    return mask if part is None else part
+    return cut_back(mask, found.opened.box, found.round_necked[found.opened.labels])
 
 
 def lobed(mask: NDArray[np.bool_]) -> bool:
@@ -219,7 +195,7 @@ def _alike(found: _Pieces, typical: float | None) -> NDArray[np.int64]:
     """The pieces that are more than specks (of any size when ``typical`` is
     None, else within a factor ``LOBES_ALIKE`` of it)."""
     size = found.size
-    keep = size >= max(4.0, 0.005 * float(found.region.sum()))
+    keep = size >= max(4.0, 0.005 * float(found.opened.region.sum()))
     if typical is not None:
         keep &= (size <= LOBES_ALIKE * typical) & (LOBES_ALIKE * size >= typical)
     keep[0] = False
@@ -229,10 +205,10 @@ def _alike(found: _Pieces, typical: float | None) -> NDArray[np.int64]:
 def _all_round(found: _Pieces, pieces: NDArray[np.int64]) -> bool:
     """Whether the pieces lie all round the body: their directions from its centre
     average to a resultant shorter than ``LOBES_SPREAD``."""
-    rows, cols = np.indices(found.labels.shape)
-    row_sums = np.bincount(found.labels.ravel(), weights=rows.ravel())
-    col_sums = np.bincount(found.labels.ravel(), weights=cols.ravel())
-    body_rows, body_cols = np.nonzero(found.body)
+    rows, cols = np.indices(found.opened.labels.shape)
+    row_sums = np.bincount(found.opened.labels.ravel(), weights=rows.ravel())
+    col_sums = np.bincount(found.opened.labels.ravel(), weights=cols.ravel())
+    body_rows, body_cols = np.nonzero(found.opened.body)
     angles = np.arctan2(
         row_sums[pieces] / found.size[pieces] - body_rows.mean(),
         col_sums[pieces] / found.size[pieces] - body_cols.mean(),

@@ -30,6 +30,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable
+from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import NDArray
@@ -331,6 +332,76 @@ def opened(
         disk = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * size + 1, 2 * size + 1))
         body = cv2.morphologyEx(mask.astype(np.uint8), cv2.MORPH_OPEN, disk)
     return largest_part(body)
+
+
+def scaled_region(
+    mask: NDArray[np.bool_], radius: float
+) -> tuple[tuple[int, int, int, int], NDArray[np.bool_]]:
+    """A region's bounding box (r0, r1, c0, c1) and the region in it, scaled
+    down to an equivalent radius of at most ``radius`` pixels and padded by 2.
+
+    What hangs off a region is judged at one resolution, whatever the photo's,
+    and a large rock costs no more than a small one.
+    """
+    import cv2
+
+    rows, cols = np.flatnonzero(mask.any(axis=1)), np.flatnonzero(mask.any(axis=0))
+    box = (int(rows[0]), int(rows[-1]) + 1, int(cols[0]), int(cols[-1]) + 1)
+    region = mask[box[0] : box[1], box[2] : box[3]]
+    own = math.sqrt(int(np.count_nonzero(mask)) / math.pi)
+    if own > radius:
+        scale = radius / own
+        shape = (max(1, round(region.shape[1] * scale)), max(1, round(region.shape[0] * scale)))
+        region = cv2.resize(region.astype(np.float32), shape, interpolation=cv2.INTER_AREA) >= 0.5
+    return box, np.pad(region, 2)
+
+
+@dataclass(frozen=True)
+class Pieces:
+    """What an opening takes off a region, on :func:`scaled_region`'s scaled, padded region."""
+
+    box: tuple[int, int, int, int]
+    region: NDArray[np.bool_]
+    body: NDArray[np.bool_]
+    #: The pieces off the body, labelled 1..n (8-connected), and their OpenCV stats.
+    labels: NDArray[np.int32]
+    stats: NDArray[np.int32]
+
+
+def opened_pieces(
+    mask: NDArray[np.bool_], share: float, radius: float, *, by_distance: bool = True
+) -> Pieces | None:
+    """The pieces an opening by a disk of ``share`` of its equivalent radius
+    (:func:`opened`) takes off a region, measured scaled to at most ``radius``;
+    None for a region under 30 pixels or one the disk empties."""
+    import cv2
+
+    if np.count_nonzero(mask) < 30:
+        return None
+    box, region = scaled_region(mask, radius)
+    body = opened(region, share, by_distance=by_distance)
+    if body is None:
+        return None
+    _, labels, stats, _ = cv2.connectedComponentsWithStats((region & ~body).astype(np.uint8), connectivity=8)
+    return Pieces(box, region, body, labels, stats)
+
+
+def cut_back(
+    mask: NDArray[np.bool_], box: tuple[int, int, int, int], cut: NDArray[np.bool_]
+) -> NDArray[np.bool_]:
+    """The largest part of ``mask`` left once ``cut`` is off; ``cut`` is drawn on
+    :func:`scaled_region`'s scaled, padded region of ``box`` (``mask`` itself
+    when nothing is left)."""
+    import cv2
+
+    r0, r1, c0, c1 = box
+    cut = cut[2:-2, 2:-2]
+    if cut.shape != (r1 - r0, c1 - c0):
+        cut = cv2.resize(cut.astype(np.float32), (c1 - c0, r1 - r0), interpolation=cv2.INTER_LINEAR) >= 0.5
+    kept = mask.copy()
+    kept[r0:r1, c0:c1] &= ~cut
+    part = largest_part(kept)
+    return mask if part is None else part
 
 
 def largest_part(mask: NDArray[np.bool_] | NDArray[np.uint8]) -> NDArray[np.bool_] | None:
