@@ -114,6 +114,27 @@ def test_a_textured_dark_rock_loses_its_shadow_too():
     assert iou(kept, rock) > 0.95
 
 
+@pytest.mark.parametrize("seed", [0, 3])
+def test_a_shadow_on_a_grainy_ground_is_taken_off(seed):
+    # The ground's grain spreads it by about half the step from ground to
+    # rock: the rise from the rock's rim to the shadow is under twice that
+    # spread, yet plainly a shadow's (flat, on one arc, away from the light).
+    photo, rock, shadow = lit_rock(ground_texture=0.4, seed=seed, azimuth=math.radians(90.0 * seed + 20.0))
+    joined = rock | shadow
+    assert iou(joined, rock) < 0.87
+    kept = shadow_off(log_brightness(photo), joined)
+    assert not (kept & ~joined).any()
+    assert iou(kept, rock) > 0.9, iou(kept, rock)
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_a_rock_outlined_right_on_a_grainy_ground_is_left_alone(seed):
+    photo, rock, _ = lit_rock(
+        texture=0.15, ground_texture=0.4, seed=seed, azimuth=math.radians(90.0 * seed + 20.0)
+    )
+    assert shadow_off(log_brightness(photo), rock) is rock
+
+
 def test_a_light_rocks_mask_is_left_alone():
     # Beside a light rock the shadow is darker than the ground, never rock:
     # whatever the mask, there is nothing to take off.

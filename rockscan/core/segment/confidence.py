@@ -74,28 +74,28 @@ AGREE_IOU = 0.8
 # BEGIN FITTED
 WEIGHTS = np.array(
     [
-        0.54739,  # logit_best
-        -0.0903837,  # logit_rival
-        0.186947,  # logit_agreeing
-        0.0518585,  # agreeing
-        -0.0895,  # candidates
-        -0.0974803,  # logit_detected_best
+        0.564375,  # logit_best
+        -0.0868045,  # logit_rival
+        0.174265,  # logit_agreeing
+        0.0580764,  # agreeing
+        -0.0947427,  # candidates
+        -0.103036,  # logit_detected_best
         0,  # own_logit_score
         0,  # own_support
-        -0.775612,  # own_weak
+        -0.813804,  # own_weak
         0,  # own_outside
         0,  # own_noise
-        -17.2362,  # own_frame
+        -18.024,  # own_frame
         0,  # own_log_detection
         0,  # own_centre_distance
         0,  # own_covers_centre
-        0.342556,  # own_log_area
+        0.367842,  # own_log_area
         0,  # own_consensus
         0,  # own_pebbles
-        1.18553,  # own_chromaticity
+        1.20029,  # own_chromaticity
     ]
 )
-INTERCEPT = 1.30285
+INTERCEPT = 1.42145
 # END FITTED
 
 
