@@ -753,7 +753,9 @@ def write_score_figure(records: list[dict], part: str, path: Path) -> Path | Non
             counts.append(int(inside.sum()))
     left.plot(centres, shares, "o-", color="tab:red", label="rockscan")
     for x, y, n in zip(centres, shares, counts, strict=True):
-        left.annotate(str(n), (x, y), textcoords="offset points", xytext=(4, -12), fontsize=8)
+        # Below the point, or above it near the axis, where the tick labels are.
+        below = y > 0.1
+        left.annotate(str(n), (x, y), textcoords="offset points", xytext=(4, -12 if below else 6), fontsize=8)
     left.set(xlim=(0, 1), ylim=(0, 1.02), xlabel="segmentation score (mean of each tenth)")
     left.set_ylabel("share of outlines with IoU >= 0.9")
     left.set_title("right where the score says (photos a tenth beside each point)", fontsize=10)
