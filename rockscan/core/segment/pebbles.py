@@ -30,7 +30,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-from rockscan.core.segment.split import Pieces, cut_back, opened_pieces
+from rockscan.core.segment.split import Pieces, all_round, cut_back, opened_pieces
 from rockscan.core.segment.stats import label_maxima
 
 __all__ = ["lobed", "pebble_share", "pebbles_off"]
@@ -203,14 +203,5 @@ def _alike(found: _Pieces, typical: float | None) -> NDArray[np.int64]:
 
 
 def _all_round(found: _Pieces, pieces: NDArray[np.int64]) -> bool:
-    """Whether the pieces lie all round the body: their directions from its centre
-    average to a resultant shorter than ``LOBES_SPREAD``."""
-    rows, cols = np.indices(found.opened.labels.shape)
-    row_sums = np.bincount(found.opened.labels.ravel(), weights=rows.ravel())
-    col_sums = np.bincount(found.opened.labels.ravel(), weights=cols.ravel())
-    body_rows, body_cols = np.nonzero(found.opened.body)
-    angles = np.arctan2(
-        row_sums[pieces] / found.size[pieces] - body_rows.mean(),
-        col_sums[pieces] / found.size[pieces] - body_cols.mean(),
-    )
-    return bool(abs(np.exp(1j * angles).mean()) < LOBES_SPREAD)
+    """Whether the pieces lie all round the body (``split.all_round``, ``LOBES_SPREAD``)."""
+    return all_round(found.opened.labels, found.opened.body, pieces, LOBES_SPREAD)

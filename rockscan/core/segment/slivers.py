@@ -37,7 +37,7 @@ import math
 import numpy as np
 from numpy.typing import NDArray
 
-from rockscan.core.segment.split import cut_back, opened_pieces
+from rockscan.core.segment.split import all_round, cut_back, opened_pieces
 
 __all__ = ["slivers_off"]
 
@@ -108,23 +108,10 @@ def slivers_off(mask: NDArray[np.bool_]) -> NDArray[np.bool_]:
     typical = float(np.median(stats[cut, cv2.CC_STAT_AREA]))
     sizes = stats[large, cv2.CC_STAT_AREA]
     alike = large[(sizes <= ALIKE * typical) & (ALIKE * sizes >= typical)]
-    if _all_round(labels, body, alike):
+    # Two or more alike pieces all round are a star's arms or a spindle's tips.
+    if alike.size >= 2 and all_round(labels, body, alike, SPREAD):
         return mask
     return cut_back(mask, found.box, cut[labels])
-
-
-def _all_round(labels: NDArray[np.int32], body: NDArray[np.bool_], pieces: NDArray[np.intp]) -> bool:
-    """Whether two or more pieces lie all round the body (the unit vectors from
-    its centre to theirs average to a resultant under ``SPREAD``): the arms of
-    a star, or the two tips of a spindle, not slivers."""
-    if pieces.size < 2:
-        return False
-    body_rows, body_cols = np.nonzero(body)
-    angles = []
-    for i in pieces:
-        rows, cols = np.nonzero(labels == i)
-        angles.append(math.atan2(rows.mean() - body_rows.mean(), cols.mean() - body_cols.mean()))
-    return bool(abs(np.exp(1j * np.array(angles)).mean()) < SPREAD)
 
 
 def _elongation(piece: NDArray[np.bool_]) -> float:

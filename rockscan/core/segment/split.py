@@ -345,8 +345,7 @@ def scaled_region(
     """
     import cv2
 
-    rows, cols = np.flatnonzero(mask.any(axis=1)), np.flatnonzero(mask.any(axis=0))
-    box = (int(rows[0]), int(rows[-1]) + 1, int(cols[0]), int(cols[-1]) + 1)
+    box = bounding_box(mask)
     region = mask[box[0] : box[1], box[2] : box[3]]
     own = math.sqrt(int(np.count_nonzero(mask)) / math.pi)
     if own > radius:
@@ -384,6 +383,25 @@ def opened_pieces(
         return None
     _, labels, stats, _ = cv2.connectedComponentsWithStats((region & ~body).astype(np.uint8), connectivity=8)
     return Pieces(box, region, body, labels, stats)
+
+
+def all_round(
+    labels: NDArray[np.integer], body: NDArray[np.bool_], pieces: NDArray[np.intp], spread: float
+) -> bool:
+    """Whether the labelled pieces lie all round the body: the unit vectors from
+    the body's centre to theirs average to a resultant shorter than ``spread``
+    (lobes or arms of the rock's own shape, not something joined on one side)."""
+    rows, cols = np.indices(labels.shape)
+    flat = labels.ravel()
+    size = np.maximum(np.bincount(flat), 1)
+    row_sums = np.bincount(flat, weights=rows.ravel())
+    col_sums = np.bincount(flat, weights=cols.ravel())
+    body_rows, body_cols = np.nonzero(body)
+    angles = np.arctan2(
+        row_sums[pieces] / size[pieces] - body_rows.mean(),
+        col_sums[pieces] / size[pieces] - body_cols.mean(),
+    )
+    return bool(abs(np.exp(1j * angles).mean()) < spread)
 
 
 def cut_back(
