@@ -653,8 +653,8 @@ def _candidates(detection: _Detection) -> Iterator[_Detection]:
 
 def _overlap(a: NDArray[np.bool_], b: NDArray[np.bool_]) -> float:
     """Intersection over union of two masks."""
-    union = int((a | b).sum())
-    return float((a & b).sum()) / union if union else 0.0
+    union = int(np.count_nonzero(a | b))
+    return float(np.count_nonzero(a & b)) / union if union else 0.0
 
 
 def _choice_key(found: Segmentation, detection_score: float) -> float:
@@ -691,7 +691,7 @@ class _Outliner:
         Outlines are traced on an image where the smallest rock found spans
         about ``outline_radius`` pixels: finer costs time and adds nothing to its shape.
         """
-        smallest = min(int(r.sum()) for r in detection.regions)
+        smallest = min(int(np.count_nonzero(r)) for r in detection.regions)
         radius_photo = math.sqrt(smallest / math.pi) * self.detect_scale
         return min(max(self.largest_scale, radius_photo / self.config.outline_radius), self.detect_scale)
 
@@ -751,7 +751,7 @@ class _Outliner:
         # A rock is no smaller than the detection's smallest region may be.
         least = self.config.min_area_fraction * work.shape[0] * work.shape[1]
         for source, mask in masks:
-            if mask is None or mask.sum() < least:
+            if mask is None or np.count_nonzero(mask) < least:
                 continue
             candidate = RockMask(mask=mask, coverage=mask.astype(np.float32), origin_rowcol=(0, 0))
             candidate = _cropped(
@@ -820,7 +820,7 @@ def _where_free(rock: RockMask, taken: NDArray[np.bool_]) -> RockMask | None:
     r0, c0 = rock.origin_rowcol
     h, w = rock.mask.shape
     free = ~taken[r0 : r0 + h, c0 : c0 + w]
-    if float((rock.mask & free).sum()) < FREE_SHARE * float(rock.mask.sum()):
+    if float(np.count_nonzero(rock.mask & free)) < FREE_SHARE * float(np.count_nonzero(rock.mask)):
         return None
     mask = largest_part(rock.mask & free)
     if mask is None:

@@ -70,7 +70,7 @@ def _fit_lighting(image: NDArray[np.float32], ground: NDArray[np.bool_], degree:
         kept = residual[keep]
         spread = 1.2533 * float(np.abs(kept - kept.mean()).mean())
         inliers = np.abs(residual) <= 2.5 * max(spread, 1e-6)
-        if inliers.sum() < terms.shape[1] * 3:
+        if np.count_nonzero(inliers) < terms.shape[1] * 3:
             break
         keep = inliers
     return coef
@@ -227,7 +227,7 @@ def _robust_z(
 ) -> NDArray[np.float32]:
     """Deviation from the ground in robust standard deviations (median, MAD, at least ``floor``;
     with ``local``, at most the typical spread of the ground's stretches)."""
-    values = flat[ground] if ground.sum() > 50 else flat.ravel()
+    values = flat[ground] if np.count_nonzero(ground) > 50 else flat.ravel()
     # Every fourth value gives the same statistics at a quarter of the cost.
     values = values[::4] if values.size > 4000 else values
     median = float(np.median(values))
@@ -288,7 +288,7 @@ def _best_regions(
                 part
                 for i in usable
                 for part in split_rocks(signed, labels == i, min_area, config.z_grow)
-                if part.sum() >= min_area and (signed[part] > config.z_detect).any()
+                if np.count_nonzero(part) >= min_area and (signed[part] > config.z_detect).any()
             ]
         else:
             regions = [labels == i for i in usable]
@@ -313,7 +313,7 @@ def _best_regions(
                 # rock can look like a dip between two.
                 # Its component is the label under its first pixel.
                 whole = labels == labels.flat[int(np.argmax(regions[main]))]
-                if whole.sum() > 1.2 * np.count_nonzero(regions[main]):
+                if np.count_nonzero(whole) > 1.2 * np.count_nonzero(regions[main]):
                     alternatives.append((total, whole, polarity))
         if total <= 0 or (best is not None and total <= best[0]):
             continue
@@ -330,7 +330,7 @@ def _best_regions(
             regions = [regions[i] for i in np.flatnonzero(keep & (areas_r >= _RELATIVE_AREA * largest))]
         else:
             parts = _split(regions[main], signed, min_area) if split else []
-            regions = [max(parts, key=lambda r: int(r.sum()))] if parts else [regions[main]]
+            regions = [max(parts, key=lambda r: int(np.count_nonzero(r)))] if parts else [regions[main]]
         # In a crop, the neighbours that would be rocks with --all.
         others = [
             candidates[i]
@@ -338,7 +338,7 @@ def _best_regions(
             if i != main
             and not all_rocks
             and scores[i] >= _RELATIVE_SCORE * total
-            and candidates[i].sum() >= _RELATIVE_AREA * candidates[main].sum()
+            and np.count_nonzero(candidates[i]) >= _RELATIVE_AREA * np.count_nonzero(candidates[main])
         ]
         best = (total, regions, polarity, others)
     if best is None:
@@ -376,9 +376,9 @@ def _every_rock(
     keep[main] = True
     rocks = [part for i in np.flatnonzero(keep) for part in _split(regions[i], signed, min_area)]
     rocks = rejoined(rocks)
-    largest = max(int(r.sum()) for r in rocks)
-    rocks = [r for r in rocks if r.sum() >= config.min_relative_area * largest]
-    return sorted(rocks, key=lambda r: -int(r.sum()))
+    largest = max(int(np.count_nonzero(r)) for r in rocks)
+    rocks = [r for r in rocks if np.count_nonzero(r) >= config.min_relative_area * largest]
+    return sorted(rocks, key=lambda r: -int(np.count_nonzero(r)))
 
 
 def _region_measures(
@@ -441,11 +441,16 @@ def _region_scores(measures: tuple[NDArray[np.float64], ...]) -> NDArray[np.floa
 
 def _centre_weight(regions: list[NDArray[np.bool_]], shape: tuple[int, int]) -> NDArray[np.float64]:
     """1 at the frame's centre, falling to ``1 - _CENTRE_PRIOR`` at its corners (squared distance)."""
+    import cv2
+
     weights = []
     rows_at, cols_at = np.arange(shape[0]), np.arange(shape[1])
     for region in regions:
-        # The centroid from the region's row and column profiles: two sums, no pixel list.
-        by_row, by_col = region.sum(axis=1), region.sum(axis=0)
+        # The centroid from the region's row and column profiles: two sums, no
+        # pixel list (OpenCV's sums of the bytes cost a fifth of numpy's).
+        pixels = region.view(np.uint8)
+        by_row = cv2.reduce(pixels, 1, cv2.REDUCE_SUM, dtype=cv2.CV_32S).ravel()
+        by_col = cv2.reduce(pixels, 0, cv2.REDUCE_SUM, dtype=cv2.CV_32S).ravel()
         area = max(int(by_row.sum()), 1)
         dy = (int(by_row @ rows_at) / area + 0.5) / shape[0] * 2.0 - 1.0
         dx = (int(by_col @ cols_at) / area + 0.5) / shape[1] * 2.0 - 1.0

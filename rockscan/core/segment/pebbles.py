@@ -90,7 +90,7 @@ def _pieces(mask: NDArray[np.bool_], share: float, *, by_distance: bool = False)
     contact = np.maximum(np.bincount(labels[rim], minlength=count), 1)
     size = stats[:, cv2.CC_STAT_AREA].astype(np.float64)
     round_necked = (
-        (size >= max(4.0, 0.005 * float(region.sum())))
+        (size >= max(4.0, 0.005 * float(np.count_nonzero(region))))
         & (inscribed >= ROUNDNESS * np.sqrt(size / math.pi))
         & (2.0 * inscribed >= NECK * contact)
     )
@@ -125,7 +125,7 @@ def pebble_share(mask: NDArray[np.bool_]) -> float:
     # Superformula of high symmetry), not pebbles that happen to touch it.
     if pebbles.size >= LOBES and pebbles.max() <= LOBES_ALIKE * pebbles.min():
         return 0.0
-    return float(pebbles.sum() / found.opened.region.sum())
+    return float(pebbles.sum() / np.count_nonzero(found.opened.region))
 
 
 def pebbles_off(mask: NDArray[np.bool_]) -> NDArray[np.bool_]:
@@ -195,7 +195,7 @@ def _alike(found: _Pieces, typical: float | None) -> NDArray[np.int64]:
     """The pieces that are more than specks (of any size when ``typical`` is
     None, else within a factor ``LOBES_ALIKE`` of it)."""
     size = found.size
-    keep = size >= max(4.0, 0.005 * float(found.opened.region.sum()))
+    keep = size >= max(4.0, 0.005 * float(np.count_nonzero(found.opened.region)))
     if typical is not None:
         keep &= (size <= LOBES_ALIKE * typical) & (LOBES_ALIKE * size >= typical)
     keep[0] = False

@@ -130,7 +130,7 @@ def outline_evidence(
     import cv2
 
     m8 = mask.astype(np.uint8)
-    area = int(m8.sum())
+    area = int(np.count_nonzero(m8))
     if area == 0:
         return OutlineEvidence(0.0, 1.0, 1.0, 1.0, 0.0, 0.0)
     radius = math.sqrt(area / math.pi)
@@ -163,8 +163,8 @@ def outline_evidence(
         on_frame[:, -pad - 1 :] = True
     frame_px = boundary & on_frame
     inside_px = boundary & ~on_frame
-    n_boundary = int(boundary.sum())
-    frame = float(frame_px.sum()) / max(n_boundary, 1)
+    n_boundary = int(np.count_nonzero(boundary))
+    frame = float(np.count_nonzero(frame_px)) / max(n_boundary, 1)
     # The bands' sums in a box round each boundary pixel, from integral
     # images: only the boundary's boxes are needed, not every pixel's. The
     # padding keeps every such box inside the window.
@@ -175,7 +175,7 @@ def outline_evidence(
     out_n = _box_sums(outer, box, cv2.CV_32S)
     out_s = _box_sums(lv * outer, box, cv2.CV_64F)
     at = (in_n > 0) & (out_n > 0)
-    if at.sum() < 4:
+    if np.count_nonzero(at) < 4:
         support, weak, outside = 0.0, 1.0, 1.0
     else:
         inside_mean = in_s[at] / in_n[at]
@@ -192,7 +192,7 @@ def outline_evidence(
     inner_spread = min(robust_spread(core), 2.0) if core.size >= 8 else 1.0
     ring = (outside_dist > reach) & (outside_dist <= 3 * reach)
     ring = ring[pad:-pad, pad:-pad]
-    values = level[ring] if ring.sum() >= 8 else level[~mask]
+    values = level[ring] if np.count_nonzero(ring) >= 8 else level[~mask]
     if values.size >= 8:
         noise = robust_spread(values)
     else:

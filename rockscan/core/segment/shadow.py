@@ -270,7 +270,7 @@ def shadow_left_out(
     if area < MIN_AREA:
         return None
     _, ring = _core_and_ring(outer8, math.sqrt(area / math.pi))
-    if ring.sum() < 8:
+    if np.count_nonzero(ring) < 8:
         return None
     ground, ground_spread = _median_and_iqr(gray, ring)
     for index, inner in enumerate(inners):
@@ -282,7 +282,7 @@ def shadow_left_out(
             continue
         left = cv2.erode(outer8 & (1 - inner8), np.ones((3, 3), np.uint8)) > 0
         core, _ = _core_and_ring(inner8, math.sqrt(size / math.pi))
-        if left.sum() < MIN_LEFT or core.sum() < 8:
+        if np.count_nonzero(left) < MIN_LEFT or np.count_nonzero(core) < 8:
             continue
         rock, rock_spread = _median_and_iqr(gray, core)
         level, spread = _median_and_iqr(gray, left)
@@ -319,7 +319,7 @@ def _levels(
     round it) and the ground's robust spread; None without enough of either."""
 
     core, ring = _core_and_ring(mask8, radius)
-    if core.sum() < 8 or ring.sum() < 8:
+    if np.count_nonzero(core) < 8 or np.count_nonzero(ring) < 8:
         return None
     # Medians of a few thousand evenly spaced pixels: the levels need no more.
     ground_values = gray.ravel()[_sample_at(ring)]
@@ -407,7 +407,7 @@ def _inner_edges(
         & (rises.height >= NOISE * noise)
         & (rises.valley <= rock + MARGIN * step)
     )
-    if shows.sum() < SHOWN * MIN_ARC * rays:
+    if np.count_nonzero(shows) < SHOWN * MIN_ARC * rays:
         return None
     # The bands are looked at on the rays still in question only (their
     # quantiles sort every sample of a ray).
@@ -417,7 +417,7 @@ def _inner_edges(
     if arc is None or not MIN_ARC * rays <= arc.size <= MAX_ARC * rays:
         return None
     found = shows[arc]
-    if found.sum() < SHOWN * arc.size:
+    if np.count_nonzero(found) < SHOWN * arc.size:
         return None
     # Rays of the arc without a rise of their own take their neighbours'.
     steps = np.arange(arc.size)

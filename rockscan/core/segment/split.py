@@ -104,7 +104,7 @@ def split_rocks(
     parts = []
     for label in range(1, int(cells.max()) + 1):
         cell = cells == label
-        if cell.sum() < min_area:
+        if np.count_nonzero(cell) < min_area:
             continue
         if _solidity(cell) >= CONVEX_CELL:
             # No notch where a neighbour would touch: one rock, however its light falls.
@@ -167,7 +167,7 @@ def split_blobs(mask: NDArray[np.bool_]) -> list[NDArray[np.bool_]]:
     list of (rows, cols) ndarray of bool
         The blobs, or ``[mask]``.
     """
-    area = int(mask.sum())
+    area = int(np.count_nonzero(mask))
     if area < 50 or _solidity(mask) >= BLOB_SOLIDITY:
         return [mask]
     return split_necks(mask, BLOB_MIN_SHARE * area, neck_share=BLOB_NECK_SHARE, cut_share=BLOB_CUT_SHARE)
@@ -227,7 +227,7 @@ def split_colours(mask: NDArray[np.bool_], rgb: NDArray[np.float32]) -> list[NDA
     for _ in range(COLOUR_DEPTH):
         cut = []
         for part in parts:
-            if int(part.sum()) < _COLOUR_LEAST_AREA or _solidity(part) >= CONVEX_CELL:
+            if int(np.count_nonzero(part)) < _COLOUR_LEAST_AREA or _solidity(part) >= CONVEX_CELL:
                 whole.append(part)
                 continue
             if chroma is None:
@@ -254,9 +254,9 @@ def _two_colours(mask: NDArray[np.bool_], chroma: NDArray[np.float32]) -> list[N
     import cv2
     from skimage.filters import threshold_otsu
 
-    area = int(mask.sum())
+    area = int(np.count_nonzero(mask))
     inner = cv2.erode(mask.astype(np.uint8), np.ones((5, 5), np.uint8)) > 0
-    if inner.sum() < 100:
+    if np.count_nonzero(inner) < 100:
         return [mask]
     samples = chroma[inner].astype(np.float64)
     centre = samples.mean(axis=0)
@@ -278,8 +278,8 @@ def _two_colours(mask: NDArray[np.bool_], chroma: NDArray[np.float32]) -> list[N
         piece = largest_part(colour)
         if (
             piece is None
-            or piece.sum() < COLOUR_COHERENCE * colour.sum()
-            or piece.sum() < COLOUR_MIN_SHARE * area
+            or np.count_nonzero(piece) < COLOUR_COHERENCE * np.count_nonzero(colour)
+            or np.count_nonzero(piece) < COLOUR_MIN_SHARE * area
         ):
             return [mask]
         pieces.append(piece)
@@ -318,7 +318,7 @@ def opened(
     """
     import cv2
 
-    radius = math.sqrt(max(int(mask.sum()), 1) / math.pi)
+    radius = math.sqrt(max(int(np.count_nonzero(mask)), 1) / math.pi)
     size = round(share * radius)
     if size < 2:
         return None
@@ -569,7 +569,7 @@ def split_necks(
         ),
     )
     parts = [labels == i for i in range(1, int(labels.max()) + 1)]
-    parts = [p for p in parts if p.sum() >= min_area]
+    parts = [p for p in parts if np.count_nonzero(p) >= min_area]
     return parts if len(parts) > 1 else [cell]
 
 
@@ -579,7 +579,7 @@ def _solidity(mask: NDArray[np.bool_]) -> float:
 
     contours, _ = cv2.findContours(mask.astype(np.uint8), cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_SIMPLE)
     hull = cv2.contourArea(cv2.convexHull(np.concatenate(contours)))
-    return float(mask.sum()) / max(hull, 1.0)
+    return float(np.count_nonzero(mask)) / max(hull, 1.0)
 
 
 def _filled(mask: NDArray[np.bool_], largest: float) -> NDArray[np.bool_]:

@@ -69,7 +69,7 @@ def _outline_rock(
         if rock is None or not reaches_edge:
             break
         estimate, origin = rock.mask, rock.origin_rowcol
-    if rock is None or reaches_edge or rock.area > 4.0 * float(detected.sum()):
+    if rock is None or reaches_edge or rock.area > 4.0 * float(np.count_nonzero(detected)):
         rock = _fallback(detected, (r0, c0))
     if rock is None:
         return None
@@ -109,14 +109,14 @@ def _scored(
     flat = _flatten(values, lighting, detection.channel.multiplicative)
     mask8 = mask.astype(np.uint8)
     inside, ring = _core_and_ring(mask8, radius)
-    core = flat[inside] if inside.sum() >= 4 else flat[mask]
+    core = flat[inside] if np.count_nonzero(inside) >= 4 else flat[mask]
     rock_level = float(np.median(core))
     sides = (r0 == 0, r1 == rows, c0 == 0, c1 == cols)
     two_sided = _two_sided_ground(flat, ring, mask, rock_level)
     if two_sided is not None:
         level = _two_sided_level(flat, two_sided, rock_level)
     else:
-        ground = float(np.median(flat[ring])) if ring.sum() >= 8 else 0.0
+        ground = float(np.median(flat[ring])) if np.count_nonzero(ring) >= 8 else 0.0
         step = rock_level - ground
         if not math.isfinite(step) or abs(step) < 1e-6:
             return dataclasses.replace(rock, score=0.0, evidence=())
@@ -252,13 +252,13 @@ def _threshold_rock(
     outside_dist = cv2.distanceTransform(1 - det8, cv2.DIST_L2, 3)
     margin = max(2.0, 0.15 * radius)
     core = inside_dist > margin
-    if core.sum() < 4:
+    if np.count_nonzero(core) < 4:
         core = detected
     ring = (outside_dist > margin) & (outside_dist <= margin + max(3.0, 0.3 * radius))
     ring &= cv2.dilate(others.astype(np.uint8), np.ones((5, 5), np.uint8)) == 0
-    if ring.sum() < 8:
+    if np.count_nonzero(ring) < 8:
         ring = outside_dist > margin
-    if ring.sum() < 8:
+    if np.count_nonzero(ring) < 8:
         return _fallback(detected, (r0, c0)), False
     level = _level(window, flat, core, ring, detection.channel)
     if level is None:
@@ -278,7 +278,7 @@ def _threshold_rock(
     if overlap.max() == 0:
         return _fallback(detected, (r0, c0)), False
     mask = _fill_holes(labels == int(np.argmax(overlap)))
-    if mask.sum() < 0.25 * detected.sum():
+    if np.count_nonzero(mask) < 0.25 * np.count_nonzero(detected):
         return _fallback(detected, (r0, c0)), False
     coverage = np.clip(level, 0.0, 1.0).astype(np.float32)
     # Only this rock's own edge: filled holes count as rock, anything beyond

@@ -162,7 +162,7 @@ class RockMask:
     @property
     def area(self) -> int:
         """Area in working pixels."""
-        return int(self.mask.sum())
+        return int(np.count_nonzero(self.mask))
 
 
 @dataclass(frozen=True, eq=False)
