@@ -22,7 +22,7 @@ from rockscan.core.segment.choose import (
     choose_ranked,
     pebble_share,
 )
-from rockscan.core.segment.split import _solidity
+from rockscan.core.segment.stats import solidity
 from rockscan.core.segment.types import RockMask, Segmentation
 
 SHAPE = (120, 160)
@@ -40,7 +40,7 @@ def candidate(mask: np.ndarray, score: float = 0.9, frame: float = 0.0) -> Segme
         coverage=mask.astype(np.float32),
         origin_rowcol=(0, 0),
         score=score,
-        evidence=(0.95, 0.0, 0.03, 0.1, frame, _solidity(mask)),
+        evidence=(0.95, 0.0, 0.03, 0.1, frame, solidity(mask)),
     )
     return Segmentation(
         labels=mask.astype(np.int32),

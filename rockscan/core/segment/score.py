@@ -26,7 +26,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-from rockscan.core.segment.stats import logistic, robust_spread
+from rockscan.core.segment.stats import logistic, robust_spread, solidity
 
 __all__ = ["OutlineEvidence", "outline_evidence", "outline_score"]
 
@@ -197,9 +197,6 @@ def outline_evidence(
         noise = robust_spread(values)
     else:
         noise = 1.0
-    contours, _ = cv2.findContours(m8, cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_SIMPLE)
-    hull_area = max(cv2.contourArea(cv2.convexHull(np.concatenate(contours))), 1.0)
-    solidity = float(min(1.0, area / hull_area))
     return OutlineEvidence(
-        support, weak, outside, min(noise, 2.0), frame, solidity, darker_outside, inner_spread
+        support, weak, outside, min(noise, 2.0), frame, min(1.0, solidity(m8)), darker_outside, inner_spread
     )

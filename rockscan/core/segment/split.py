@@ -35,7 +35,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-from rockscan.core.segment.stats import bounding_box, label_maxima
+from rockscan.core.segment.stats import bounding_box, label_maxima, solidity
 
 __all__ = [
     "label_image",
@@ -96,7 +96,7 @@ def split_rocks(
     r0, c0 = max(0, r0 - 1), max(0, c0 - 1)
     r1, c1 = min(region.shape[0], r1 + 1), min(region.shape[1], c1 + 1)
     sub = region[r0:r1, c0:c1]
-    if _solidity(sub) >= CONVEX:
+    if solidity(sub) >= CONVEX:
         # Touching rocks leave notches where they meet: a convex region is one rock.
         return [region]
     values = np.where(sub, signed[r0:r1, c0:c1], 0.0).astype(np.float32)
@@ -106,7 +106,7 @@ def split_rocks(
         cell = cells == label
         if np.count_nonzero(cell) < min_area:
             continue
-        if _solidity(cell) >= CONVEX_CELL:
+        if solidity(cell) >= CONVEX_CELL:
             # No notch where a neighbour would touch: one rock, however its light falls.
             parts.append(cell)
             continue
@@ -168,7 +168,7 @@ def split_blobs(mask: NDArray[np.bool_]) -> list[NDArray[np.bool_]]:
         The blobs, or ``[mask]``.
     """
     area = int(np.count_nonzero(mask))
-    if area < 50 or _solidity(mask) >= BLOB_SOLIDITY:
+    if area < 50 or solidity(mask) >= BLOB_SOLIDITY:
         return [mask]
     return split_necks(mask, BLOB_MIN_SHARE * area, neck_share=BLOB_NECK_SHARE, cut_share=BLOB_CUT_SHARE)
 
@@ -227,7 +227,7 @@ def split_colours(mask: NDArray[np.bool_], rgb: NDArray[np.float32]) -> list[NDA
     for _ in range(COLOUR_DEPTH):
         cut = []
         for part in parts:
-            if int(np.count_nonzero(part)) < _COLOUR_LEAST_AREA or _solidity(part) >= CONVEX_CELL:
+            if int(np.count_nonzero(part)) < _COLOUR_LEAST_AREA or solidity(part) >= CONVEX_CELL:
                 whole.append(part)
                 continue
             if chroma is None:
@@ -459,7 +459,7 @@ def rejoined(parts: list[NDArray[np.bool_]], convex: float = CONVEX_CELL) -> lis
     # Each part's token names it while it lasts, so that a pair's solidity is
     # measured once, not again after every join elsewhere.
     tokens = list(range(len(parts)))
-    solidity: dict[tuple[int, int], float] = {}
+    solidities: dict[tuple[int, int], float] = {}
     while len(parts) > 1:
         # A part touches another where its 3 x 3 neighbourhood holds the other's
         # label (float32 holds every label up to 2**24 exactly).
@@ -472,12 +472,12 @@ def rejoined(parts: list[NDArray[np.bool_]], convex: float = CONVEX_CELL) -> lis
         for key in np.unique(lo * (len(parts) + 1) + hi):
             a, b = divmod(int(key), len(parts) + 1)
             pair = (tokens[a - 1], tokens[b - 1])
-            if pair not in solidity:
+            if pair not in solidities:
                 union = parts[a - 1] | parts[b - 1]
                 r0, r1, c0, c1 = bounding_box(union)
-                solidity[pair] = _solidity(union[r0:r1, c0:c1])
-            if solidity[pair] >= convex and (best is None or solidity[pair] > best[0]):
-                best = (solidity[pair], a, b)
+                solidities[pair] = solidity(union[r0:r1, c0:c1])
+            if solidities[pair] >= convex and (best is None or solidities[pair] > best[0]):
+                best = (solidities[pair], a, b)
         if best is None:
             break
         _, a, b = best
@@ -571,15 +571,6 @@ def split_necks(
     parts = [labels == i for i in range(1, int(labels.max()) + 1)]
     parts = [p for p in parts if np.count_nonzero(p) >= min_area]
     return parts if len(parts) > 1 else [cell]
-
-
-def _solidity(mask: NDArray[np.bool_]) -> float:
-    """Area over the area of the convex hull (pixel centres, so a little over 1 for small masks)."""
-    import cv2
-
-    contours, _ = cv2.findContours(mask.astype(np.uint8), cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_SIMPLE)
-    hull = cv2.contourArea(cv2.convexHull(np.concatenate(contours)))
-    return float(np.count_nonzero(mask)) / max(hull, 1.0)
 
 
 def _filled(mask: NDArray[np.bool_], largest: float) -> NDArray[np.bool_]:

@@ -7,7 +7,7 @@ import math
 import numpy as np
 from numpy.typing import NDArray
 
-__all__ = ["bounding_box", "label_maxima", "logistic", "logit", "robust_spread"]
+__all__ = ["bounding_box", "label_maxima", "logistic", "logit", "robust_spread", "solidity"]
 
 #: The median absolute deviation of a normal distribution times this is its standard deviation.
 MAD_TO_SIGMA = 1.4826
@@ -63,3 +63,19 @@ def bounding_box(mask: NDArray[np.bool_]) -> tuple[int, int, int, int] | None:
         return None
     cols = np.flatnonzero(mask.any(axis=0))
     return int(rows[0]), int(rows[-1]) + 1, int(cols[0]), int(cols[-1]) + 1
+
+
+def solidity(mask: NDArray[np.bool_] | NDArray[np.uint8]) -> float:
+    """A mask's area over the area of its convex hull.
+
+    The hull runs through the outer pixels' centres, so a small mask's
+    solidity is a little over 1; nonzero pixels are the mask.
+    """
+    import cv2
+
+    mask8 = (np.asarray(mask) != 0).astype(np.uint8)
+    contours, _ = cv2.findContours(mask8, cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_SIMPLE)
+    if not contours:
+        return 0.0
+    hull = cv2.contourArea(cv2.convexHull(np.concatenate(contours)))
+    return float(np.count_nonzero(mask8)) / max(hull, 1.0)
