@@ -47,7 +47,7 @@ def ranking() -> Ranking:
 
 
 def test_the_features_read_the_best_the_rival_and_the_agreeing_candidates():
-    x = confidence_features(ranking(), detected_best=0.4)
+    x = confidence_features(ranking(), detected_best=0.4, notch=0.05)
     assert x.shape == (len(CONFIDENCE_FEATURES),)
     col = {name: k for k, name in enumerate(CONFIDENCE_FEATURES)}
     assert x[col["logit_best"]] == pytest.approx(logit(0.6))
@@ -61,18 +61,26 @@ def test_the_features_read_the_best_the_rival_and_the_agreeing_candidates():
     own = [k for k, name in enumerate(CONFIDENCE_FEATURES) if name.startswith("own_")]
     np.testing.assert_array_equal(x[own], ranking().features[1, : len(own)])
     assert CONFIDENCE_FEATURES[own[-1]] == "own_chromaticity"
+    assert x[col["notch"]] == 0.05
+
+
+def test_an_outline_with_one_deeper_notch_is_never_surer():
+    x = confidence_features(ranking(), detected_best=0.4, notch=0.0)
+    notched = confidence_features(ranking(), detected_best=0.4, notch=0.2)
+    assert WEIGHTS[CONFIDENCE_FEATURES.index("notch")] <= 0
+    assert outline_confidence(notched) <= outline_confidence(x)
 
 
 def test_no_rival_counts_as_a_probability_near_zero():
     r = ranking()
     alone = Ranking(r.index, r.probabilities, r.features, np.ones_like(r.ious))
-    x = confidence_features(alone, detected_best=0.4)
+    x = confidence_features(alone, detected_best=0.4, notch=0.05)
     assert x[CONFIDENCE_FEATURES.index("logit_rival")] == pytest.approx(logit(1e-4))
     assert x[CONFIDENCE_FEATURES.index("agreeing")] == 4.0
 
 
 def test_the_score_is_a_probability_and_the_fit_reads_the_choice_as_expected():
-    x = confidence_features(ranking(), detected_best=0.4)
+    x = confidence_features(ranking(), detected_best=0.4, notch=0.05)
     assert 0.0 < outline_confidence(x) < 1.0
     assert outline_confidence(x) == pytest.approx(1.0 / (1.0 + math.exp(-(INTERCEPT + WEIGHTS @ x))))
     # A more probable choice is surer; a more probable rival object, less sure.

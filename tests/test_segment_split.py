@@ -316,6 +316,55 @@ def test_bounding_box_holds_every_pixel_of_the_mask_and_no_more(shape, share, se
     assert box == (ys.min(), ys.max() + 1, xs.min(), xs.max() + 1)
 
 
+
+def test_solidity_of_a_square_an_l_a_disc_and_nothing():
+    from skimage.draw import disk
+
+    from rockscan.core.segment.stats import solidity
+
+    square = np.zeros((40, 40), bool)
+    square[5:25, 5:25] = True
+    # The hull runs through the outer pixels' centres: 400 pixels over a 19 x 19 hull.
+    assert solidity(square) == pytest.approx(400 / 361)
+    # An L of three 10 x 10 blocks: 300 pixels; its hull cuts across the
+    # missing block from the upright's top right pixel centre to the foot's
+    # (a 19 x 19 hull less a triangle of legs 10).
+    ell = np.zeros((40, 40), np.uint8)
+    ell[5:25, 5:15] = 1
+    ell[15:25, 15:25] = 1
+    assert solidity(ell) == pytest.approx(300 / (361 - 50))
+    disc = np.zeros((200, 200), bool)
+    disc[disk((100, 100), 80)] = True
+    assert 0.99 < solidity(disc) < 1.02
+    assert solidity(np.zeros((10, 10), bool)) == 0.0
+
+
+def test_notch_is_one_gap_of_the_hull_beyond_the_next():
+    from skimage.draw import disk
+
+    from rockscan.core.segment.stats import notch
+
+    # A square with a 6 x 6 bite out of one side's middle: the bite is the
+    # one gap of the hull (19 x 19 through the outer pixels' centres, the
+    # filled hull 20 x 20 pixels).
+    bitten = np.zeros((40, 40), bool)
+    bitten[5:25, 5:25] = True
+    bitten[5:11, 12:18] = False
+    assert notch(bitten) == pytest.approx(36 / 400)
+    # Two alike bites on opposite sides: neither dominates.
+    twice = bitten.copy()
+    twice[19:25, 12:18] = False
+    assert notch(twice) == 0.0
+    # A solid disc, a regular star and nothing: no notch to speak of.
+    disc = np.zeros((200, 200), bool)
+    disc[disk((100, 100), 80)] = True
+    assert notch(disc) < 0.01
+    turns = np.linspace(0.0, 2.0 * np.pi, 721)
+    radius = 60.0 * (1.0 + 0.4 * np.cos(5.0 * turns))
+    star = polygon2mask((200, 200), np.column_stack([100 + radius * np.sin(turns), 100 + radius * np.cos(turns)]))
+    assert notch(star) < 0.01
+    assert notch(np.zeros((10, 10), bool)) == 0.0
+
 def _disc_on_ramp(ground_left: float, ground_right: float, rock: float = 0.5):
     """A disc of one level on a ground ramping from left to right, its core and the ring round it."""
     from rockscan.core.segment.trace import _core_and_ring

@@ -158,7 +158,7 @@ from rockscan.core.segment.split import (
     split_necks,
     territories,
 )
-from rockscan.core.segment.stats import bounding_box
+from rockscan.core.segment.stats import bounding_box, notch
 from rockscan.core.segment.trace import (
     RING,
     RING_PIXELS,
@@ -266,7 +266,7 @@ def _chosen(
     candidates = candidates + pool.refined()
     ranking = rank(*zip(*candidates, strict=True))
     found = _without_shadow(candidates, ranking.index, ranking.probabilities, pixels)
-    return found, confidence_features(ranking, float(detected.max()))
+    return found, confidence_features(ranking, float(detected.max()), notch(found.rocks[0].mask))
 
 
 def _without_shadow(

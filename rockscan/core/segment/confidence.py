@@ -17,13 +17,13 @@ choice saw, over the whole photo:
 * the largest probability among the detection's own outlines alone, before
   the refinements;
 * the chosen candidate's own features (``choose.FEATURES``, up to its
-  channel).
-
-The weights are fitted (``scripts/fit_segment_confidence.py``) on
-development photos the choice model never saw, so that the score is the
-probability that the outline is right (IoU >= 0.9), each held to the
-direction :data:`SIGNS` gives it: the photos are of one generator, and on a
-real photo more evidence for an outline must never count against it.
+  channel);
+* how far one notch dominates the outline taken (``stats.notch``): the
+  share of its convex hull that its largest gap covers, less the second
+  largest's. Of two outlines the photo supports alike, one that took
+  something in or left a bite out has one deep notch and is more often
+  wrong; a star's arms leave alike gaps all round and a solid rock none,
+  so neither shape counts against its outline.
 """
 
 from __future__ import annotations
@@ -48,6 +48,7 @@ CONFIDENCE_FEATURES = (
     "candidates",
     "logit_detected_best",
     *(f"own_{name}" for name in _OWN),
+    "notch",
 )
 
 #: The direction in which the score may move with each feature (+1: never
@@ -62,6 +63,7 @@ SIGNS = {
     "candidates": 0,
     "logit_detected_best": 0,
     **{f"own_{name}": MONOTONE[name] for name in _OWN},
+    "notch": -1,
 }
 
 #: Overlap below which a candidate outlines another object than the chosen one,
@@ -74,32 +76,33 @@ AGREE_IOU = 0.8
 # BEGIN FITTED
 WEIGHTS = np.array(
     [
-        0.564375,  # logit_best
-        -0.0868045,  # logit_rival
-        0.174265,  # logit_agreeing
-        0.0580764,  # agreeing
-        -0.0947427,  # candidates
-        -0.103036,  # logit_detected_best
+        0.498942,  # logit_best
+        -0.0735086,  # logit_rival
+        0.160471,  # logit_agreeing
+        0.0557198,  # agreeing
+        -0.0824567,  # candidates
+        -0.0935413,  # logit_detected_best
         0,  # own_logit_score
         0,  # own_support
-        -0.813804,  # own_weak
+        -0.976188,  # own_weak
         0,  # own_outside
         0,  # own_noise
-        -18.024,  # own_frame
+        0,  # own_frame
         0,  # own_log_detection
         0,  # own_centre_distance
         0,  # own_covers_centre
-        0.367842,  # own_log_area
+        0.373956,  # own_log_area
         0,  # own_consensus
         0,  # own_pebbles
-        1.20029,  # own_chromaticity
+        1.259,  # own_chromaticity
+        -30.4092,  # notch
     ]
 )
-INTERCEPT = 1.42145
+INTERCEPT = 1.75193
 # END FITTED
 
 
-def confidence_features(ranking: Ranking, detected_best: float) -> NDArray[np.float64]:
+def confidence_features(ranking: Ranking, detected_best: float, notch: float) -> NDArray[np.float64]:
     """The score's features of a choice among the whole pool (module docstring).
 
     Parameters
@@ -108,6 +111,8 @@ def confidence_features(ranking: Ranking, detected_best: float) -> NDArray[np.fl
         The choice among the whole pool (``choose.rank``).
     detected_best : float
         The largest probability among the detection's own outlines, judged alone.
+    notch : float
+        How far one notch dominates the outline taken (``stats.notch``).
 
     Returns
     -------
@@ -128,6 +133,7 @@ def confidence_features(ranking: Ranking, detected_best: float) -> NDArray[np.fl
             float(p.size),
             logit(detected_best),
             *own,
+            float(notch),
         ]
     )
 

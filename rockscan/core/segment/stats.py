@@ -7,7 +7,7 @@ import math
 import numpy as np
 from numpy.typing import NDArray
 
-__all__ = ["bounding_box", "label_maxima", "logistic", "logit", "robust_spread", "solidity"]
+__all__ = ["bounding_box", "label_maxima", "logistic", "logit", "notch", "robust_spread", "solidity"]
 
 #: The median absolute deviation of a normal distribution times this is its standard deviation.
 MAD_TO_SIGMA = 1.4826
@@ -79,3 +79,39 @@ def solidity(mask: NDArray[np.bool_] | NDArray[np.uint8]) -> float:
         return 0.0
     hull = cv2.contourArea(cv2.convexHull(np.concatenate(contours)))
     return float(np.count_nonzero(mask8)) / max(hull, 1.0)
+
+
+def notch(mask: NDArray[np.bool_] | NDArray[np.uint8]) -> float:
+    """How far one gap dominates a region's convex hull: the share of the hull
+    that its largest gap (a 4-connected part of the hull outside the region)
+    covers, less the share of the second largest.
+
+    A rock that took something in (a pebble, a neighbour half joined, ground
+    between them) or left a bite out has one deep notch; a star's arms leave
+    gaps all round, of much the same size, and a solid outline none: both
+    measure near 0.
+
+    Parameters
+    ----------
+    mask : (h, w) ndarray of bool or uint8
+        One region; nonzero pixels are the region.
+
+    Returns
+    -------
+    float
+        In [0, 1); 0 for an empty or convex mask.
+    """
+    import cv2
+
+    mask8 = (np.asarray(mask) != 0).astype(np.uint8)
+    contours, _ = cv2.findContours(mask8, cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_SIMPLE)
+    if not contours:
+        return 0.0
+    hull = np.zeros_like(mask8)
+    cv2.fillConvexPoly(hull, cv2.convexHull(np.concatenate(contours)), 1)
+    _, _, parts, _ = cv2.connectedComponentsWithStats(hull & (1 - mask8), connectivity=4)
+    gaps = np.sort(parts[1:, cv2.CC_STAT_AREA])[::-1]
+    if gaps.size == 0:
+        return 0.0
+    second = gaps[1] if gaps.size > 1 else 0
+    return float(gaps[0] - second) / float(max(np.count_nonzero(hull), 1))
