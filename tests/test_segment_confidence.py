@@ -133,3 +133,27 @@ def test_written_weights_are_read_back(tmp_path):
     exec(compile(path.read_text(), str(path), "exec"), namespace)
     np.testing.assert_allclose(namespace["WEIGHTS"], weights, rtol=1e-5)
     assert namespace["INTERCEPT"] == pytest.approx(0.25)
+
+
+def test_a_stars_arms_do_not_count_against_its_outline_in_hard_photos():
+    # Low contrast, textures, pebbles, a cast shadow, a lighting gradient, noise
+    # and blur: the whole pool decides. The arms leave alike gaps all round the
+    # hull, so the notch reads near 0 and the star keeps the trust a solid
+    # rock's outline gets (a score on the outline's solidity trusted none).
+    from rockscan.core.render import RenderConfig, render_photo
+    from rockscan.core.segment.stats import notch
+    from rockscan.io import default_spec_path, read_spec
+
+    star = next(s for s in read_spec(default_spec_path()) if s.name == "five-armed-star")
+    config = RenderConfig(
+        rows=240, cols=320, contrast=0.12, rock_texture=0.08, ground_texture=0.08,
+        pebbles=6, gradient=0.3, shadow=0.4, noise=0.03, blur=1.5,
+    )  # fmt: skip
+    trusted = 0
+    for seed in range(1, 5):
+        pixels = render_photo(star.params, config, rng=seed, name=star.name).pixels
+        found, features = _chosen(pixels, SegmentConfig())
+        assert features is not None
+        assert notch(found.rocks[0].mask) < 0.02
+        trusted += segment(pixels).rocks[0].score >= 0.5
+    assert trusted >= 3

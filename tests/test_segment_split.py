@@ -316,7 +316,6 @@ def test_bounding_box_holds_every_pixel_of_the_mask_and_no_more(shape, share, se
     assert box == (ys.min(), ys.max() + 1, xs.min(), xs.max() + 1)
 
 
-
 def test_solidity_of_a_square_an_l_a_disc_and_nothing():
     from skimage.draw import disk
 
@@ -361,9 +360,12 @@ def test_notch_is_one_gap_of_the_hull_beyond_the_next():
     assert notch(disc) < 0.01
     turns = np.linspace(0.0, 2.0 * np.pi, 721)
     radius = 60.0 * (1.0 + 0.4 * np.cos(5.0 * turns))
-    star = polygon2mask((200, 200), np.column_stack([100 + radius * np.sin(turns), 100 + radius * np.cos(turns)]))
+    star = polygon2mask(
+        (200, 200), np.column_stack([100 + radius * np.sin(turns), 100 + radius * np.cos(turns)])
+    )
     assert notch(star) < 0.01
     assert notch(np.zeros((10, 10), bool)) == 0.0
+
 
 def _disc_on_ramp(ground_left: float, ground_right: float, rock: float = 0.5):
     """A disc of one level on a ground ramping from left to right, its core and the ring round it."""
