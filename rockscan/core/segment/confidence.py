@@ -24,6 +24,12 @@ choice saw, over the whole photo:
   something in or left a bite out has one deep notch and is more often
   wrong; a star's arms leave alike gaps all round and a solid rock none,
   so neither shape counts against its outline.
+
+The weights are fitted (``scripts/fit_segment_confidence.py``) on
+development photos the choice model never saw, so that the score is the
+probability that the outline is right (IoU >= 0.9), each held to the
+direction :data:`SIGNS` gives it: the photos are of one generator, and on a
+real photo more evidence for an outline must never count against it.
 """
 
 from __future__ import annotations

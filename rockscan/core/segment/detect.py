@@ -448,7 +448,7 @@ def _centre_weight(regions: list[NDArray[np.bool_]], shape: tuple[int, int]) -> 
     for region in regions:
         # The centroid from the region's row and column profiles: two sums, no
         # pixel list (OpenCV's sums of the bytes cost a fifth of numpy's).
-        pixels = region.view(np.uint8)
+        pixels = np.ascontiguousarray(region).view(np.uint8)
         by_row = cv2.reduce(pixels, 1, cv2.REDUCE_SUM, dtype=cv2.CV_32S).ravel()
         by_col = cv2.reduce(pixels, 0, cv2.REDUCE_SUM, dtype=cv2.CV_32S).ravel()
         area = max(int(by_row.sum()), 1)
