@@ -367,6 +367,24 @@ def test_notch_is_one_gap_of_the_hull_beyond_the_next():
     assert notch(np.zeros((10, 10), bool)) == 0.0
 
 
+@settings(max_examples=60, deadline=None)
+@given(
+    shape=st.tuples(st.integers(1, 30), st.integers(1, 30)),
+    share=st.floats(0.0, 0.9),
+    seed=st.integers(0, 2**16),
+    pad=st.integers(1, 5),
+)
+def test_notch_and_solidity_are_shares_and_ignore_where_the_mask_lies(shape, share, seed, pad):
+    from rockscan.core.segment.stats import notch, solidity
+
+    mask = np.random.default_rng(seed).random(shape) < share
+    assert 0.0 <= notch(mask) < 1.0
+    assert solidity(mask) >= 0.0
+    # Moved within a larger frame, the same pixels have the same hull and gaps.
+    assert notch(np.pad(mask, pad)) == notch(mask)
+    assert solidity(np.pad(mask, pad)) == solidity(mask)
+
+
 def _disc_on_ramp(ground_left: float, ground_right: float, rock: float = 0.5):
     """A disc of one level on a ground ramping from left to right, its core and the ring round it."""
     from rockscan.core.segment.trace import _core_and_ring
