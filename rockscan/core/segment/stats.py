@@ -73,12 +73,10 @@ def solidity(mask: NDArray[np.bool_] | NDArray[np.uint8]) -> float:
     """
     import cv2
 
-    mask8 = (np.asarray(mask) != 0).astype(np.uint8)
-    contours, _ = cv2.findContours(mask8, cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_SIMPLE)
-    if not contours:
+    mask8, hull = _hull(mask)
+    if hull is None:
         return 0.0
-    hull = cv2.contourArea(cv2.convexHull(np.concatenate(contours)))
-    return float(np.count_nonzero(mask8)) / max(hull, 1.0)
+    return float(np.count_nonzero(mask8)) / max(cv2.contourArea(hull), 1.0)
 
 
 def notch(mask: NDArray[np.bool_] | NDArray[np.uint8]) -> float:
@@ -103,15 +101,26 @@ def notch(mask: NDArray[np.bool_] | NDArray[np.uint8]) -> float:
     """
     import cv2
 
-    mask8 = (np.asarray(mask) != 0).astype(np.uint8)
-    contours, _ = cv2.findContours(mask8, cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_SIMPLE)
-    if not contours:
+    mask8, points = _hull(mask)
+    if points is None:
         return 0.0
     hull = np.zeros_like(mask8)
-    cv2.fillConvexPoly(hull, cv2.convexHull(np.concatenate(contours)), 1)
+    cv2.fillConvexPoly(hull, points, 1)
     _, _, parts, _ = cv2.connectedComponentsWithStats(hull & (1 - mask8), connectivity=4)
     gaps = np.sort(parts[1:, cv2.CC_STAT_AREA])[::-1]
     if gaps.size == 0:
         return 0.0
     second = gaps[1] if gaps.size > 1 else 0
     return float(gaps[0] - second) / float(max(np.count_nonzero(hull), 1))
+
+
+def _hull(mask: NDArray[np.bool_] | NDArray[np.uint8]) -> tuple[NDArray[np.uint8], NDArray[np.int32] | None]:
+    """A mask as 0/1 bytes and the convex hull of its outer outlines (through
+    the outer pixels' centres); None for an empty mask."""
+    import cv2
+
+    mask8 = (np.asarray(mask) != 0).astype(np.uint8)
+    contours, _ = cv2.findContours(mask8, cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_SIMPLE)
+    if not contours:
+        return mask8, None
+    return mask8, cv2.convexHull(np.concatenate(contours))
