@@ -24,7 +24,11 @@ found regions).
 After the table, for each part: the AUROC of rockscan's segmentation score
 (outlines of IoU >= 0.9 against those below 0.8), and rockscan's share at
 IoU >= 0.9 apart for rocks lighter and darker than their ground (judged on
-the truth: the rock's median gray against a ring of ground round it).
+the truth: the rock's median gray against a ring of ground round it), and how
+its outlines below IoU 0.9 go wrong: too large (precision, the share of the
+outline on the rock, below recall, the share of the rock inside it) or too
+small, and how many are near misses (IoU 0.8-0.9). The JSON records carry each
+photo's precision and recall.
 
 Rows:
 
@@ -97,16 +101,25 @@ class RockScore:
     iou: float
     centroid_error: float  # in equivalent radii of the truth; inf when nothing was found
     no_rock: bool
+    precision: float = 0.0  # share of the found mask on the rock
+    recall: float = 0.0  # share of the rock found
 
 
 def score_rock(found: NDArray[np.bool_], truth: NDArray[np.bool_]) -> RockScore:
-    """IoU and centroid error of a found mask against the true one."""
+    """IoU, centroid error, precision and recall of a found mask against the true one."""
     if not found.any():
         return RockScore(0.0, float("inf"), True)
     radius = float(np.sqrt(truth.sum() / np.pi))
     c_found = np.array(ndi.center_of_mass(found))
     c_truth = np.array(ndi.center_of_mass(truth))
-    return RockScore(iou(found, truth), float(np.hypot(*(c_found - c_truth)) / radius), False)
+    shared = int(np.count_nonzero(found & truth))
+    return RockScore(
+        iou(found, truth),
+        float(np.hypot(*(c_found - c_truth)) / radius),
+        False,
+        shared / int(np.count_nonzero(found)),
+        shared / max(int(np.count_nonzero(truth)), 1),
+    )
 
 
 @dataclass(frozen=True)
@@ -655,6 +668,25 @@ def score_auroc(records: list[dict], part: str, method: str = "rockscan") -> tup
     return float(above), good.size, bad.size
 
 
+def wrong_outlines(records: list[dict], part: str, method: str = "rockscan") -> dict[str, int]:
+    """How a method's outlines below IoU 0.9 go wrong, over a part's photos of one rock and crops.
+
+    Returns counts: ``wrong`` (found, IoU < 0.9), of them ``too_large`` (more
+    of the outline off the rock than of the rock missed: precision below
+    recall) and ``too_small``, and ``near`` (IoU 0.8-0.9); ``no_rock`` apart.
+    """
+    rs = _single(records, part, method)
+    wrong = [r for r in rs if not r["no_rock"] and r["iou"] < IOU_GOOD]
+    large = sum(r.get("precision", 0.0) < r.get("recall", 0.0) for r in wrong)
+    return {
+        "wrong": len(wrong),
+        "too_large": large,
+        "too_small": len(wrong) - large,
+        "near": sum(r["iou"] >= 0.8 for r in wrong),
+        "no_rock": sum(bool(r["no_rock"]) for r in rs),
+    }
+
+
 def format_table(rows: list[dict]) -> str:
     """The results as one markdown table."""
     lines = [
@@ -842,6 +874,13 @@ def main(argv: list[str] | None = None) -> int:
                 for name, (right, n) in split.items()
             )
             print(f"{part}: rockscan at IoU >= 0.9 on rocks {cells}")
+        kinds = wrong_outlines(records, part)
+        if kinds["wrong"]:
+            print(
+                f"{part}: rockscan's outlines at IoU < 0.9: {kinds['wrong']}, of them {kinds['too_large']} "
+                f"too large (precision below recall) and {kinds['too_small']} too small; "
+                f"{kinds['near']} near misses (IoU 0.8-0.9)"
+            )
     if args.json:
         args.json.write_text(json.dumps(_finite({"rows": rows, "records": records}), indent=1))
     if args.figures:

@@ -257,8 +257,51 @@ def test_rock_score_centroid_error_in_equivalent_radii():
     assert score.iou == pytest.approx(70 / 130)
     assert score.centroid_error == pytest.approx(3 / np.sqrt(100 / np.pi))
     assert not score.no_rock
+    assert score.precision == pytest.approx(70 / 100) and score.recall == pytest.approx(70 / 100)
     empty = bench.score_rock(np.zeros_like(truth), truth)
     assert empty.no_rock and empty.iou == 0.0
+
+
+def test_rock_score_precision_and_recall_tell_too_large_from_too_small():
+    truth = np.zeros((40, 40), bool)
+    truth[10:20, 10:20] = True
+    large = np.zeros_like(truth)
+    large[10:20, 10:22] = True  # the rock and 20 px of ground
+    score = bench.score_rock(large, truth)
+    assert (score.precision, score.recall) == (pytest.approx(100 / 120), 1.0)
+    small = np.zeros_like(truth)
+    small[10:20, 10:18] = True  # 80 px of the rock
+    score = bench.score_rock(small, truth)
+    assert (score.precision, score.recall) == (1.0, pytest.approx(80 / 100))
+
+
+def test_wrong_outlines_are_counted_by_how_they_go_wrong():
+    def record(iou, precision, recall, no_rock=False, kind="one", method="rockscan"):
+        return {
+            "part": "dev",
+            "method": method,
+            "kind": kind,
+            "iou": iou,
+            "precision": precision,
+            "recall": recall,
+            "no_rock": no_rock,
+        }
+
+    records = [
+        record(0.95, 0.97, 0.98),  # right
+        record(0.85, 0.86, 0.99),  # near miss, too large
+        record(0.60, 0.99, 0.61),  # too small
+        record(0.0, 0.0, 0.0, no_rock=True),
+        record(0.5, 0.5, 1.0, kind="crop"),  # crops count, too large
+        record(0.5, 0.5, 1.0, method="otsu"),  # another method's
+    ]
+    assert bench.wrong_outlines(records, "dev") == {
+        "wrong": 3,
+        "too_large": 2,
+        "too_small": 1,
+        "near": 1,
+        "no_rock": 1,
+    }
 
 
 def _squares() -> np.ndarray:
