@@ -677,7 +677,7 @@ def wrong_outlines(records: list[dict], part: str, method: str = "rockscan") -> 
     """
     rs = _single(records, part, method)
     wrong = [r for r in rs if not r["no_rock"] and r["iou"] < IOU_GOOD]
-    large = sum(r.get("precision", 0.0) < r.get("recall", 0.0) for r in wrong)
+    large = sum(r["precision"] < r["recall"] for r in wrong)
     return {
         "wrong": len(wrong),
         "too_large": large,
