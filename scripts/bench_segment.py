@@ -107,18 +107,20 @@ class RockScore:
 
 def score_rock(found: NDArray[np.bool_], truth: NDArray[np.bool_]) -> RockScore:
     """IoU, centroid error, precision and recall of a found mask against the true one."""
-    if not found.any():
+    n_found = int(np.count_nonzero(found))
+    if n_found == 0:
         return RockScore(0.0, float("inf"), True)
-    radius = float(np.sqrt(truth.sum() / np.pi))
+    n_truth = int(np.count_nonzero(truth))
+    shared = int(np.count_nonzero(found & truth))
+    radius = float(np.sqrt(n_truth / np.pi))
     c_found = np.array(ndi.center_of_mass(found))
     c_truth = np.array(ndi.center_of_mass(truth))
-    shared = int(np.count_nonzero(found & truth))
     return RockScore(
-        iou(found, truth),
+        shared / (n_found + n_truth - shared),
         float(np.hypot(*(c_found - c_truth)) / radius),
         False,
-        shared / int(np.count_nonzero(found)),
-        shared / max(int(np.count_nonzero(truth)), 1),
+        shared / n_found,
+        shared / max(n_truth, 1),
     )
 
 
