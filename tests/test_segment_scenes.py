@@ -88,6 +88,16 @@ def test_a_band_of_ground_that_outscores_every_rock_does_not_hide_them():
     assert abs(crowd.n_found - crowd.n_true) <= 3, crowd
 
 
+def test_dark_rocks_touching_along_dark_seams_are_parted():
+    # Development scene 5: 14 dark rocks of several colours in a cluster, on
+    # a lighter ground. Where two touch, the line between them is darker than
+    # either; at detection size it blurs away, and 7 rocks were matched one
+    # to one (two regions of three and more rocks) until the outlines were
+    # cut along their seams at working size (11).
+    crowd = judged("crowded", 5)
+    assert crowd.matched >= 10, crowd
+
+
 @pytest.mark.parametrize(
     ("condition", "index"), [("plain", 9), ("touching-pebbles", 2), ("touching-pebbles", 3)]
 )

@@ -19,7 +19,14 @@ import rockscan.run.pipeline
 from rockscan.core.outline import trace_outline
 from rockscan.core.segment import CONFIDENT_SCORE, segment
 from rockscan.core.segment.score import outline_evidence, outline_score
-from rockscan.core.segment.split import rejoined, split_colours, split_necks, split_rocks, territories
+from rockscan.core.segment.split import (
+    rejoined,
+    split_colours,
+    split_necks,
+    split_rocks,
+    split_seams,
+    territories,
+)
 from rockscan.run.pipeline import classify_image, measure_rocks
 
 # ---------------------------------------------------------------- touching rocks
@@ -529,3 +536,80 @@ def test_all_rocks_keeps_a_coloured_rocks_shaded_side(shade):
     found = polygon2mask(shape, outline.contour_rowcol)
     truth = cover >= 0.5
     assert (found & truth).sum() / (found | truth).sum() > 0.88
+
+
+# ---------------------------------------------------------------- seams between touching rocks
+
+
+def _domes(shape, centers, radius):
+    """Masks and heights of overlapping hemispheres, each laid over the ones before:
+    where two meet, the upper one's rim, facing away from the camera, shows."""
+    yy, xx = np.mgrid[: shape[0], : shape[1]]
+    height = np.zeros(shape)
+    owner = np.full(shape, -1)
+    for i, (r, c) in enumerate(centers):
+        inside = (yy - r) ** 2 + (xx - c) ** 2 < radius**2
+        height[inside] = np.sqrt(1.0 - ((yy[inside] - r) ** 2 + (xx[inside] - c) ** 2) / radius**2)
+        owner[inside] = i
+    return [owner == i for i in range(len(centers))], height
+
+
+def _dome_photo(shape, height, rock, ground, noise=0.01, seed=0):
+    """Gray photo in [0, 1]: domed rocks of level ``rock`` darkening towards their rims, on ``ground``."""
+    rng = np.random.default_rng(seed)
+    inside = height > 0
+    image = np.where(inside, rock * (0.55 + 0.45 * height), ground)
+    return np.clip(image + rng.normal(0.0, noise, shape), 0.0, 1.0).astype(np.float32)
+
+
+@pytest.mark.parametrize(("rock", "ground"), [(0.3, 0.6), (0.8, 0.3)])
+def test_split_seams_cuts_touching_domes_along_the_line_they_meet(rock, ground):
+    # Centres 1.75 radii apart, the second laid over the first: a notch at each
+    # end of the contact (solidity 0.94), the contact a radius long.
+    shape = (120, 200)
+    masks, height = _domes(shape, [(60, 65), (60, 135)], 40)
+    whole = height > 0
+    parts = split_seams(whole, _dome_photo(shape, height, rock, ground))
+    assert len(parts) == 2
+    assert np.array_equal(np.logical_or.reduce(parts), whole)
+    for part in parts:
+        truth = masks[0] if part[60, 50] else masks[1]
+        assert (part & truth).sum() / (part | truth).sum() > 0.95
+
+
+def test_split_seams_keeps_a_rock_whole_when_a_dark_line_crosses_it_only_part_way():
+    # A bean (a disc less a bite: not convex) with a dark crack half-way across
+    # it: texture dents a rock's brightness, but not from one edge to the other.
+    shape = (140, 140)
+    yy, xx = np.mgrid[: shape[0], : shape[1]]
+    (disc,), height = _domes(shape, [(70, 70)], 55)
+    bite = (yy - 70) ** 2 + (xx - 135) ** 2 <= 30**2
+    bean = disc & ~bite
+    image = _dome_photo(shape, np.where(bean, height, 0.0), 0.3, 0.6)
+    crack = (np.abs(yy - 70) <= 1) & (xx < 75)
+    image[crack & bean] = 0.12
+    assert len(split_seams(bean, image)) == 1
+
+
+def test_split_seams_keeps_a_convex_outline_and_a_textured_rock_whole():
+    shape = (120, 200)
+    _, height = _domes(shape, [(60, 70), (60, 130)], 40)
+    whole = height > 0
+    rng = np.random.default_rng(5)
+    # One rock of this outline: even, but for strong speckle.
+    speckled = np.where(whole, 0.6 + 0.08 * rng.normal(size=shape), 0.3).astype(np.float32)
+    assert len(split_seams(whole, speckled)) == 1
+    (disc,), dome = _domes(shape, [(60, 100)], 50)
+    assert len(split_seams(disc, _dome_photo(shape, dome, 0.3, 0.6))) == 1
+
+
+@settings(max_examples=25, deadline=None)
+@given(st.integers(0, 2**16), st.floats(1.2, 1.9))
+def test_split_seams_parts_cover_the_outline_once(seed, apart):
+    shape = (100, 160)
+    _, height = _domes(shape, [(50, 60), (50, 60 + 30 * apart)], 30)
+    whole = height > 0
+    image = _dome_photo(shape, height, 0.35, 0.6, noise=0.04, seed=seed)
+    parts = split_seams(whole, image)
+    total = np.sum([p.astype(int) for p in parts], axis=0)
+    assert np.array_equal(total, whole.astype(int))

@@ -62,7 +62,9 @@ Steps (see :func:`segment`):
    can hold rocks that differ from the ground in brightness and others that
    differ in hue only. In a colour photo, an outline that is not convex and
    holds two clearly different colours, each in one piece, is cut between
-   them (``split.split_colours``): touching rocks of different hues.
+   them (``split.split_colours``): touching rocks of different hues. An
+   outline that is not convex and has a dark seam across it from end to end
+   is cut along it (``split.split_seams``): touching rocks of one colour.
 6. **Outline.** In a window around each rock, at working size, after a
    ``smooth_sigma`` Gaussian, the rock's level is the median inside the
    detected region (less a margin) and the ground's the median of a ring
@@ -156,6 +158,7 @@ from rockscan.core.segment.split import (
     split_blobs,
     split_colours,
     split_necks,
+    split_seams,
     territories,
 )
 from rockscan.core.segment.stats import bounding_box, notch
@@ -831,8 +834,9 @@ def _where_free(rock: RockMask, taken: NDArray[np.bool_]) -> RockMask | None:
 
 def _parted(found: Segmentation, work: NDArray[np.generic], dtype: np.dtype) -> Segmentation:
     """Every outlined rock that is several compact blobs (``split.split_blobs``),
-    or several rocks of clearly different colours (``split.split_colours``; colour
-    photos), cut into them.
+    several rocks of clearly different colours (``split.split_colours``; colour
+    photos), or several rocks with dark seams between them (``split.split_seams``),
+    cut into them.
 
     A part keeps the coverage of its territory within the rock's window and
     the score of the outline it was cut from.
@@ -840,11 +844,14 @@ def _parted(found: Segmentation, work: NDArray[np.generic], dtype: np.dtype) -> 
     rocks = []
     for rock in found.rocks:
         parts = split_blobs(rock.mask)
+        r0, c0 = rock.origin_rowcol
+        h, w = rock.mask.shape
+        window = work[r0 : r0 + h, c0 : c0 + w]
+        window = _unit(np.ascontiguousarray(window[..., :3] if window.ndim == 3 else window), dtype)
         if work.ndim == 3:
-            r0, c0 = rock.origin_rowcol
-            h, w = rock.mask.shape
-            rgb = _unit(np.ascontiguousarray(work[r0 : r0 + h, c0 : c0 + w, :3]), dtype)
-            parts = [piece for part in parts for piece in split_colours(part, rgb)]
+            parts = [piece for part in parts for piece in split_colours(part, window)]
+        gray = window @ _LUMA if window.ndim == 3 else window
+        parts = [piece for part in parts for piece in split_seams(part, gray)]
         if len(parts) == 1:
             rocks.append(rock)
             continue
