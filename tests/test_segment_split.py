@@ -613,3 +613,18 @@ def test_split_seams_parts_cover_the_outline_once(seed, apart):
     parts = split_seams(whole, image)
     total = np.sum([p.astype(int) for p in parts], axis=0)
     assert np.array_equal(total, whole.astype(int))
+
+
+def test_all_rocks_takes_the_polarity_of_the_rocks_that_together_stand_out_most():
+    # Twelve light rocks and one large dark blob (a hole, an eye in a cat's
+    # fur: development crowded scene 194) on a mid-gray ground. The blob alone
+    # outscores any one light rock, and --all found it alone, as "the" rock.
+    shape = (240, 400)
+    light = [coverage(shape, (50 + 70 * (k // 5), 40 + 70 * (k % 5)), (18, 18)) for k in range(12)]
+    dark = coverage(shape, (190, 330), (38, 38))
+    pixels = photo_of([(c, 0.8) for c in light] + [(dark, 0.1)], shape=shape, ground=0.5)
+    seg = segment(pixels, all_rocks=True)
+    assert seg.polarity == "light"
+    assert seg.n_rocks == 12
+    # One rock alone still follows its own polarity.
+    assert segment(photo_of([(dark, 0.1)], shape=shape, ground=0.5), all_rocks=True).polarity == "dark"

@@ -45,7 +45,8 @@ Steps (see :func:`segment`):
    ragged edge), times ``(1 - s)**2`` where ``s`` is the share of its edge
    that runs along the frame's (a rock lies inside the frame). The **main
    rock** is the region of highest score over both polarities; the photo's
-   polarity is that of its main rock, whether the ground is lighter or darker.
+   polarity is that of its main rock, whether the ground is lighter or darker
+   (with ``all_rocks``, that of the rocks which together score most).
    A region whose contrast has two clear levels (Otsu's separation above 0.8:
    a rock and a faint halo, or rocks joined through the ground between them)
    is cut at Otsu's threshold, and its largest part kept. With ``all_rocks``,

@@ -268,6 +268,7 @@ def _best_regions(
 
     rows, cols = z.shape
     best = None
+    best_strength = 0.0
     alternatives: list[tuple[float, NDArray[np.bool_], str]] = []
     polarities = ("light", "dark") if config.polarity == "auto" else (config.polarity,)
     for polarity in polarities:
@@ -315,10 +316,18 @@ def _best_regions(
                 whole = labels == labels.flat[int(np.argmax(regions[main]))]
                 if np.count_nonzero(whole) > 1.2 * np.count_nonzero(regions[main]):
                     alternatives.append((total, whole, polarity))
-        if total <= 0 or (best is not None and total <= best[0]):
+        strength = total
+        if all_rocks and split and total > 0:
+            kept = _rock_like(signed, regions, measures, scores, config)
+            # With --all, the polarity whose rocks together stand out most: one
+            # dark region (an eye in a cat's fur, a hole) must not outweigh a
+            # scene of light rocks, nor one glint a scene of dark ones.
+            strength = float(scores[kept].sum())
+        if total <= 0 or (best is not None and strength <= best_strength):
             continue
+        best_strength = strength
         if all_rocks and split:
-            regions = _every_rock(signed, regions, measures, scores, config, min_area)
+            regions = _every_rock(signed, regions, kept, config, min_area)
         elif all_rocks:
             # Before the last round, the rocks to leave out of the ground: those
             # that stand out about as clearly as the main one; ground texture
@@ -348,15 +357,14 @@ def _best_regions(
     return (*best, alternatives)
 
 
-def _every_rock(
+def _rock_like(
     signed: NDArray[np.float32],
     regions: list[NDArray[np.bool_]],
     measures: tuple[NDArray[np.float64], ...],
     scores: NDArray[np.float64],
     config: SegmentConfig,
-    min_area: float,
-) -> list[NDArray[np.bool_]]:
-    """The rocks among one polarity's regions, with ``all_rocks`` (module docstring, step 5), largest first.
+) -> NDArray[np.bool_]:
+    """Which of one polarity's regions are rocks, with ``all_rocks`` (module docstring, step 5).
 
     A region is a rock if it looks as much like one as the best regions do,
     whatever its size (a small rock scores less than a large one, but not per
@@ -374,6 +382,19 @@ def _every_rock(
     alike = (likeness >= _LIKENESS * reference) & (contrast >= config.z_detect)
     keep = (alike | (scores >= _RELATIVE_SCORE * scores[main])) & (measures[3] < _FRAME_SHARE)
     keep[main] = True
+    return keep
+
+
+def _every_rock(
+    signed: NDArray[np.float32],
+    regions: list[NDArray[np.bool_]],
+    keep: NDArray[np.bool_],
+    config: SegmentConfig,
+    min_area: float,
+) -> list[NDArray[np.bool_]]:
+    """The regions ``keep`` marks as rocks (:func:`_rock_like`), each cut where its
+    contrast has two levels, touching pieces that together are convex joined
+    again, and the smallest dropped; largest first."""
     rocks = [part for i in np.flatnonzero(keep) for part in _split(regions[i], signed, min_area)]
     rocks = rejoined(rocks)
     largest = max(int(np.count_nonzero(r)) for r in rocks)
