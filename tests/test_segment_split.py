@@ -245,6 +245,24 @@ def test_an_outline_of_two_touching_disks_is_cut_into_the_two():
         assert (part & disk).sum() / (part | disk).sum() > 0.95
 
 
+def test_a_small_round_rock_beside_two_large_ones_is_a_rock_of_its_own():
+    # Two disks of radius 45 and a disk of radius 13 pressed against them:
+    # the small one is 4% of the outline, under the tenth a blob needs, but round.
+    from rockscan.core.segment.split import BLOB_MIN_SHARE, split_blobs
+
+    rr, cc = _blob_grid()
+    large = [(rr - 100) ** 2 + (cc - c) ** 2 <= 45**2 for c in (75, 160)]
+    small = (rr - 45) ** 2 + (cc - 117) ** 2 <= 13**2
+    outline = large[0] | large[1] | small
+    assert small.sum() < BLOB_MIN_SHARE * outline.sum()
+    parts = split_blobs(outline)
+    assert len(parts) == 3
+    assert max((p & small).sum() / (p | small).sum() for p in parts) > 0.85
+    # A thin lip of the same area is no rock: it stays with the disk it is on.
+    lip = (np.abs(rr - 53) <= 2) & (np.abs(cc - 75) <= 35)
+    assert len(split_blobs(large[0] | large[1] | lip)) == 2
+
+
 @pytest.mark.parametrize(("arms", "amplitude"), [(5, 0.4), (6, 0.35), (3, 0.3), (4, 0.45), (8, 0.4)])
 def test_a_star_and_a_disk_stay_whole(arms, amplitude):
     from rockscan.core.segment.split import split_blobs

@@ -148,6 +148,17 @@ def split_rocks(
 BLOB_SOLIDITY = 0.93
 #: Smallest blob, as a share of the outlined rock's area.
 BLOB_MIN_SHARE = 0.1
+#: A blob down to ``BLOB_SMALL_SHARE`` of the outlined rock's area is still a
+#: rock of its own when it is round: its area at most ``BLOB_ROUND`` times the
+#: square of its inscribed radius (a disc's is pi, a 1.4:1 ellipse's 4.4; a
+#: sliver's or a crescent's far more). A cluster holds rocks of sizes 10 to 1
+#: in area, and a small one beside large ones was given to its neighbour.
+#: Chosen on the development crowded scenes 0-199 (rocks one to one, of 4,366,
+#: and scenes counted exactly, of 200: 88.5% and 48 without; 88.8% and 48 at
+#: 4.0, 89.1% and 47 at 4.5, 89.3% and 43 at 5.0; every blob down to 5% of
+#: the outline, round or not, 89.4% and 40).
+BLOB_SMALL_SHARE = 0.03
+BLOB_ROUND = 4.5
 #: ``NECK_SHARE`` and ``CUT_SHARE`` for the last look at an outlined rock
 #: with ``--all``, where the cues of the detection have already had their say.
 BLOB_NECK_SHARE = 0.9
@@ -161,8 +172,10 @@ def split_blobs(mask: NDArray[np.bool_]) -> list[NDArray[np.bool_]]:
     the detection image, left whole: on the outline traced at working size,
     a region that is not solid (solidity under ``BLOB_SOLIDITY``) is cut by
     the shape cue (:func:`split_necks`) into blobs of at least
-    ``BLOB_MIN_SHARE`` of its area. A star's arms widen towards its body and
-    keep it whole; two touching rocks meet at a neck.
+    ``BLOB_MIN_SHARE`` of its area, or of at least ``BLOB_SMALL_SHARE`` when
+    round (``BLOB_ROUND``); a smaller or thinner piece goes to the blob it
+    lies nearest. A star's arms widen towards its body and keep it whole;
+    two touching rocks meet at a neck.
 
     Parameters
     ----------
@@ -176,7 +189,20 @@ def split_blobs(mask: NDArray[np.bool_]) -> list[NDArray[np.bool_]]:
     area = int(np.count_nonzero(mask))
     if area < 50 or solidity(mask) >= BLOB_SOLIDITY:
         return [mask]
-    return split_necks(mask, BLOB_MIN_SHARE * area, neck_share=BLOB_NECK_SHARE, cut_share=BLOB_CUT_SHARE)
+    parts = split_necks(mask, BLOB_SMALL_SHARE * area, neck_share=BLOB_NECK_SHARE, cut_share=BLOB_CUT_SHARE)
+    parts = [p for p in parts if np.count_nonzero(p) >= BLOB_MIN_SHARE * area or _round(p)]
+    if len(parts) < 2:
+        return [mask]
+    owners = territories(parts)
+    return [mask & (owners == i) for i in range(1, len(parts) + 1)]
+
+
+def _round(part: NDArray[np.bool_]) -> bool:
+    """Whether a blob's area is at most ``BLOB_ROUND`` squared inscribed radii."""
+    import cv2
+
+    inscribed = float(cv2.distanceTransform(np.pad(part, 1).astype(np.uint8), cv2.DIST_L2, 5).max())
+    return inscribed > 0 and np.count_nonzero(part) <= BLOB_ROUND * inscribed**2
 
 
 #: Separation of two colours inside one outline, in their pooled standard
