@@ -98,6 +98,16 @@ def test_dark_rocks_touching_along_dark_seams_are_parted():
     assert crowd.matched >= 10, crowd
 
 
+def test_specks_are_judged_against_the_largest_rock_not_the_largest_cluster():
+    # Development scene 23: 14 light rocks on a brick wall, two clusters of
+    # them touching. Specks were dropped against the largest detected region,
+    # a cluster parted only later: 28 regions were found for 14 rocks. Judged
+    # against the largest rock once every outline is parted, 22.
+    crowd = judged("crowded", 23)
+    assert crowd.matched == crowd.n_true, crowd
+    assert crowd.n_found <= 24, crowd
+
+
 @pytest.mark.parametrize(
     ("condition", "index"), [("plain", 9), ("touching-pebbles", 2), ("touching-pebbles", 3)]
 )

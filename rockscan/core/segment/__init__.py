@@ -56,8 +56,9 @@ Steps (see :func:`segment`):
    ``z_detect``) or scores at least a tenth of the main rock; and if less
    than half its edge runs along the frame's. A small rock so counts as well
    as a large one, and a band of ground that outscores every rock does not
-   set the standard alone. Each is cut so, and every part whose area is at
-   least ``min_relative_area`` of the largest is a rock, by decreasing area.
+   set the standard alone. Each is cut so, and so are the outlines below;
+   then every rock whose area is at least ``min_relative_area`` of the
+   largest rock's is kept, by decreasing area.
    Rocks of a later channel (chromaticity, after luminance) are added where
    they lie mostly (``FREE_SHARE``) outside every rock found before: a scene
    can hold rocks that differ from the ground in brightness and others that
@@ -807,9 +808,13 @@ def _rocks_of_every_channel(
             if part is not None:
                 rocks.append(part)
                 taken |= _whole(part, taken.shape)
-    if len(rocks) == len(first.rocks):
+    # Specks are judged against the largest rock once every outline is cut into
+    # its rocks: before, the largest region may be a cluster of touching rocks.
+    largest = max(r.area for r in rocks)
+    kept = [r for r in rocks if r.area >= config.min_relative_area * largest]
+    if len(kept) == len(rocks) == len(first.rocks):
         return first
-    return _assemble(rocks, first.labels.shape, first.scale_rowcol, first.polarity, first.channel)
+    return _assemble(kept, first.labels.shape, first.scale_rowcol, first.polarity, first.channel)
 
 
 #: Least share of a later channel's rock that must lie where no earlier rock

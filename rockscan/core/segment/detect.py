@@ -327,7 +327,7 @@ def _best_regions(
             continue
         best_strength = strength
         if all_rocks and split:
-            regions = _every_rock(signed, regions, kept, config, min_area)
+            regions = _every_rock(signed, regions, kept, min_area)
         elif all_rocks:
             # Before the last round, the rocks to leave out of the ground: those
             # that stand out about as clearly as the main one; ground texture
@@ -389,16 +389,19 @@ def _every_rock(
     signed: NDArray[np.float32],
     regions: list[NDArray[np.bool_]],
     keep: NDArray[np.bool_],
-    config: SegmentConfig,
     min_area: float,
 ) -> list[NDArray[np.bool_]]:
     """The regions ``keep`` marks as rocks (:func:`_rock_like`), each cut where its
     contrast has two levels, touching pieces that together are convex joined
-    again, and the smallest dropped; largest first."""
+    again; largest first.
+
+    Rocks much smaller than the largest are dropped only once every outline
+    has been cut into its rocks (``min_relative_area``; module docstring of
+    :mod:`rockscan.core.segment`): here the largest region may still be a
+    cluster of touching rocks.
+    """
     rocks = [part for i in np.flatnonzero(keep) for part in _split(regions[i], signed, min_area)]
     rocks = rejoined(rocks)
-    largest = max(int(np.count_nonzero(r)) for r in rocks)
-    rocks = [r for r in rocks if np.count_nonzero(r) >= config.min_relative_area * largest]
     return sorted(rocks, key=lambda r: -int(np.count_nonzero(r)))
 
 

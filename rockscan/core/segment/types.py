@@ -59,7 +59,8 @@ class SegmentConfig:
     min_area_fraction : float
         Smallest region kept, as a fraction of the frame.
     min_relative_area : float
-        With several rocks, smallest region kept as a fraction of the largest.
+        With several rocks, smallest rock kept as a fraction of the largest
+        (once touching rocks are parted).
     polarity : {"auto", "dark", "light"}
         Whether the rock is darker or lighter than the ground.
     """
