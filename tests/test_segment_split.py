@@ -596,25 +596,29 @@ def test_split_seams_cuts_touching_domes_along_the_line_they_meet(rock, ground):
 
 
 def test_split_seams_keeps_a_rock_whole_when_a_dark_line_crosses_it_only_part_way():
-    # A bean (a disc less a bite: not convex) with a dark crack half-way across
-    # it: texture dents a rock's brightness, but not from one edge to the other.
+    # A bean (a disc less a bite: solidity 0.91) with a dark crack half-way
+    # across it: texture dents a rock's brightness, but not from one edge to
+    # the other. The same crack from edge to edge is a seam.
     shape = (140, 140)
     yy, xx = np.mgrid[: shape[0], : shape[1]]
     (disc,), height = _domes(shape, [(70, 70)], 55)
-    bite = (yy - 70) ** 2 + (xx - 135) ** 2 <= 30**2
-    bean = disc & ~bite
-    image = _dome_photo(shape, np.where(bean, height, 0.0), 0.3, 0.6)
-    crack = (np.abs(yy - 70) <= 1) & (xx < 75)
-    image[crack & bean] = 0.12
-    assert len(split_seams(bean, image)) == 1
+    bean = disc & ~((yy - 70) ** 2 + (xx - 130) ** 2 <= 35**2)
+    line = np.abs(yy - 70) <= 1
+    for crack, parts in ((line & (xx < 75), 1), (line, 2)):
+        image = _dome_photo(shape, np.where(bean, height, 0.0), 0.3, 0.6)
+        image[crack & bean] = 0.12
+        assert len(split_seams(bean, image)) == parts
 
 
-def test_split_seams_keeps_a_convex_outline_and_a_textured_rock_whole():
+@pytest.mark.parametrize("seed", range(5))
+def test_split_seams_keeps_an_even_speckled_rock_and_a_convex_outline_whole(seed):
+    # The outline of two touching rocks (solidity 0.94), but one rock of even
+    # brightness with strong speckle: its darkest and brightest pixels are
+    # noise apart, no seam (before SEAM_DEPTH, seeds 2 and 4 were cut).
     shape = (120, 200)
-    _, height = _domes(shape, [(60, 70), (60, 130)], 40)
+    _, height = _domes(shape, [(60, 65), (60, 135)], 40)
     whole = height > 0
-    rng = np.random.default_rng(5)
-    # One rock of this outline: even, but for strong speckle.
+    rng = np.random.default_rng(seed)
     speckled = np.where(whole, 0.6 + 0.08 * rng.normal(size=shape), 0.3).astype(np.float32)
     assert len(split_seams(whole, speckled)) == 1
     (disc,), dome = _domes(shape, [(60, 100)], 50)
