@@ -155,6 +155,7 @@ from rockscan.core.segment.shadow import MIN_AREA as SHADOW_MIN_AREA
 from rockscan.core.segment.shadow import measured_region, shadow_left_out, shadow_off
 from rockscan.core.segment.slivers import slivers_off
 from rockscan.core.segment.split import (
+    CONVEX_CELL,
     largest_part,
     opened,
     split_blobs,
@@ -163,7 +164,7 @@ from rockscan.core.segment.split import (
     split_seams,
     territories,
 )
-from rockscan.core.segment.stats import bounding_box, notch
+from rockscan.core.segment.stats import bounding_box, notch, solidity
 from rockscan.core.segment.trace import (
     RING,
     RING_PIXELS,
@@ -849,6 +850,10 @@ def _parted(found: Segmentation, work: NDArray[np.generic], dtype: np.dtype) -> 
     """
     rocks = []
     for rock in found.rocks:
+        # Every cue leaves a convex outline whole: most rocks need no window of the photo.
+        if solidity(rock.mask) >= CONVEX_CELL:
+            rocks.append(rock)
+            continue
         parts = split_blobs(rock.mask)
         r0, c0 = rock.origin_rowcol
         h, w = rock.mask.shape
