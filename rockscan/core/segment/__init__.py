@@ -115,7 +115,10 @@ Steps (see :func:`segment`):
    along rays from the rock's centre, rises a second time inside the
    outline (from the rock's shaded rim to the flat, darkened ground of the
    shadow) on one smooth arc away from the rock's lit side, what lies beyond
-   that rise is cut off (``rockscan.core.segment.shadow``).
+   that rise is cut off (``rockscan.core.segment.shadow``). Beside a light
+   rock that a cue outlined with its shadow, the profile instead falls, last,
+   from the rock's rim to a band well darker than the ground that keeps the
+   ground's grain; what lies beyond that fall goes the same way.
 10. **Rim on.** A light domed rock darkens towards its rim, below the
     ground's level, and the half-way threshold leaves that rim out; where,
     along rays from the rock's centre, the profile falls past the outline
@@ -124,7 +127,8 @@ Steps (see :func:`segment`):
     the rock's occluding edge (``rockscan.core.segment.rim``).
 
 Known limits: a shadow whose edge with the rock's shaded side the photo does
-not show (the two as dark) stays with a dark rock; a pebble or a patch of
+not show (the two as dark) stays with a dark rock; a light rock's smooth
+facet in shade, on a ground as smooth, is cut off like a shadow; a pebble or a patch of
 ground as light (or dark) as the rock and touching it joins it; a rock whose
 contrast is within about three standard deviations of the ground's texture
 may be found only in part; where the sensor clips a light rock its outline
@@ -342,16 +346,14 @@ def _edges(found: Segmentation, pixels: NDArray[np.generic]) -> Segmentation:
     region = measured_region(gray, mask, SHADOW_MIN_AREA)
     if region is None:
         return found
-    # A light rock's shadow is darker than the ground: it never joins the rock.
-    if not (found.channel == "luminance" and found.polarity == "light"):
-        kept = shadow_off(gray, mask, region)
-        if kept is not mask:
-            (r0, _, c0, _), (o0, o1), (h, w) = window, rock.origin_rowcol, rock.mask.shape
-            found = _main_cut(found, kept[o0 - r0 : o0 - r0 + h, o1 - c0 : o1 - c0 + w])
-            rock = found.rocks[0]
-            window, gray = _rock_window(found, pixels)
-            mask = _placed(rock, window, found.scale_rowcol)
-            region = None
+    kept = shadow_off(gray, mask, region)
+    if kept is not mask:
+        (r0, _, c0, _), (o0, o1), (h, w) = window, rock.origin_rowcol, rock.mask.shape
+        found = _main_cut(found, kept[o0 - r0 : o0 - r0 + h, o1 - c0 : o1 - c0 + w])
+        rock = found.rocks[0]
+        window, gray = _rock_window(found, pixels)
+        mask = _placed(rock, window, found.scale_rowcol)
+        region = None
     grown = rim_on(gray, mask, region)
     return found if grown is mask else _main_grown(found, window, mask, grown)
 
