@@ -220,21 +220,29 @@ def test_small_and_empty_masks_are_left_alone():
     assert shadow_off(log_brightness(photo), dot) is dot
 
 
-@settings(max_examples=25, deadline=None)
+@settings(max_examples=40, deadline=None)
 @given(
     azimuth=st.floats(0.0, 360.0),
     elevation=st.floats(20.0, 60.0),
     radius=st.floats(30.0, 60.0),
     texture=st.floats(0.0, 0.15),
     seed=st.integers(0, 2**16),
+    rock_albedo=st.sampled_from([0.25, 0.9]),
+    ground_texture=st.floats(0.0, 0.3),
 )
-def test_the_result_is_one_piece_of_the_mask_that_keeps_the_rock(azimuth, elevation, radius, texture, seed):
+def test_the_result_is_one_piece_of_the_mask_that_keeps_the_rock(
+    azimuth, elevation, radius, texture, seed, rock_albedo, ground_texture
+):
+    # Dark rocks and light ones (whose shadow is darker than the ground).
     photo, rock, shadow = lit_rock(
         radius=radius,
+        rock_albedo=rock_albedo,
+        ground_albedo=0.7 if rock_albedo < 0.5 else 0.3,
         azimuth=math.radians(azimuth),
         elevation=math.radians(elevation),
         texture=texture,
         seed=seed,
+        ground_texture=ground_texture,
     )
     joined = rock | shadow
     kept = shadow_off(log_brightness(photo), joined)

@@ -428,17 +428,24 @@ def _flat_bands(
 ) -> NDArray[np.bool_]:
     """Whether, on each of ``rays``, the band from the rise to the outline's
     edge is flat, well above the valley and darker than the ground."""
-    half = max(1, round(HALF_RISE / SPACING))
-    # Only samples inside the outline can be in a band.
-    span = int(rises.edge[rays].max())
-    index = np.arange(span)
-    band = (index >= (rises.at[rays] + half)[:, None]) & (index < rises.edge[rays][:, None])
-    low, middle, high = _row_quantiles(profiles[rays, :span], band, (0.25, 0.5, 0.75))
+    low, middle, high = _band_quartiles(profiles, rises, rays)
     return (
         (high - low <= FLAT * step)
         & (middle >= rises.valley[rays] + RISE * step)
         & (middle <= ground - MARGIN * step)
     )
+
+
+def _band_quartiles(
+    profiles: NDArray[np.float32], rises: _Rises, rays: NDArray[np.int64]
+) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
+    """Quartiles of the band from the rise to the outline's edge on each of ``rays``."""
+    half = max(1, round(HALF_RISE / SPACING))
+    # Only samples inside the outline can be in a band.
+    span = int(rises.edge[rays].max())
+    index = np.arange(span)
+    band = (index >= (rises.at[rays] + half)[:, None]) & (index < rises.edge[rays][:, None])
+    return _row_quantiles(profiles[rays, :span], band, (0.25, 0.5, 0.75))
 
 
 def _inner_edges(
@@ -501,11 +508,7 @@ def _inner_falls(
     if np.count_nonzero(shows) < SHOWN * MIN_ARC * rays:
         return None
     asked = np.flatnonzero(shows)
-    half = max(1, round(HALF_RISE / SPACING))
-    span = int(falls.edge[asked].max())
-    index = np.arange(span)
-    band = (index >= (falls.at[asked] + half)[:, None]) & (index < falls.edge[asked][:, None])
-    low, middle, high = _row_quantiles(profiles[asked, :span], band, (0.25, 0.5, 0.75))
+    low, middle, high = _band_quartiles(profiles, falls, asked)
     rim = -falls.valley[asked]
     shows[asked] = (
         (high - low <= FLAT * step) & (middle <= rim - RISE * step) & (middle <= ground - MARGIN * step)
