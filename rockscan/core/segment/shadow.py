@@ -107,11 +107,11 @@ ROUGH = 0.15
 #: band below the ground, both as shares of the step from the ground's level
 #: to the rock's, and the least median spread (interquartile range) of the
 #: band as a share of the ground's robust spread. Chosen on development
-#: photos 0-39 and 200-239 of every one-rock condition and crops (880): of
+#: photos 0-39 and 200-239 of every one-rock condition and crops (960): of
 #: the rocks whose rays show a fall, a cut by these rules moves 10 outlines
 #: above IoU 0.9 and one below it (0.901 -> 0.889), for any spread share
-#: from 0.2 to 0.25 (0.28: none below, 0.3: 8 above; 0.1: 3 below, smooth
-#: shaded sides cut off on textured ground) and any depth from 0.6 to 1.0
+#: from 0.2 to 0.25 (0.28: none below, 0.3: 8 above; 0 or 0.1: 5 below,
+#: smooth shaded sides cut off on textured ground) and any depth from 0.6 to 1.0
 #: (0.5: 2 below). The depth is held low, at 0.6: the shadows of the
 #: physical model in ``tests/test_segment_shadow.py``, in soft light, lie
 #: 0.73 deep. On development photos 240-279, not used to choose: 5 above,
