@@ -52,14 +52,8 @@ MIN_SHARE = 0.15
 #: On its way down to the valley the profile rises by at most this many
 #: robust spreads of the ground.
 RISE = 1.0
-#: Shifts under this many pixels are no rim's. At 2.5 a small rock's rim,
-#: 1.5-2 px outside the half-way threshold, stayed out (a rock of 25 px
-#: radius loses 0.12 of IoU to 1.5 px). Development photos of one rock and
-#: crops, 0-39, 200-239 and 240-279 (1,440): at 2, 59 outlines move, all
-#: outward and up in IoU, 6 across 0.9 (small, low contrast, highlights,
-#: crops); at 1.5, the same 6 across and 5 of 81 down in IoU; at 1, 10 of 38
-#: down on photos 200-239. The valley's depth (0.04-0.15) changes nothing there.
-MIN_SHIFT = 2.0
+#: Shifts under this many pixels are no rim's.
+MIN_SHIFT = 2.5
 #: Rays cast from the rock's centre, and the spacing of samples along them (pixels).
 RAYS = 360
 SPACING = 0.5
