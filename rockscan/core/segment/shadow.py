@@ -472,12 +472,27 @@ def _inner_edges(
     # quantiles sort every sample of a ray).
     asked = np.flatnonzero(shows)
     shows[asked] = _flat_bands(profiles, rises, asked, ground, step)
+    arc = _shown_arc(shows)
+    return None if arc is None else _arc_edges(rises, arc, shows[arc])
+
+
+def _shown_arc(shows: NDArray[np.bool_]) -> NDArray[np.int64] | None:
+    """The rays of the one arc that shows a shadow (``MIN_ARC`` to ``MAX_ARC``
+    of them, ``SHOWN`` of its rays showing one of their own); None without one."""
+    rays = shows.size
     arc = _longest_arc(shows)
     if arc is None or not MIN_ARC * rays <= arc.size <= MAX_ARC * rays:
         return None
-    found = shows[arc]
-    if np.count_nonzero(found) < SHOWN * arc.size:
+    if np.count_nonzero(shows[arc]) < SHOWN * arc.size:
         return None
+    return arc
+
+
+def _arc_edges(
+    rises: _Rises, arc: NDArray[np.int64], found: NDArray[np.bool_]
+) -> tuple[NDArray[np.int64], NDArray[np.float64], NDArray[np.float64]] | None:
+    """Along an arc, where the rock ends (sample index, smoothed) and how wide
+    the shadow is (pixels); None when it is narrower than ``MIN_BAND``."""
     # Rays of the arc without a rise of their own take their neighbours'.
     steps = np.arange(arc.size)
     limit = np.interp(steps, steps[found], rises.at[arc][found].astype(np.float64))
@@ -513,11 +528,8 @@ def _inner_falls(
     shows[asked] = (
         (high - low <= FLAT * step) & (middle <= rim - RISE * step) & (middle <= ground - MARGIN * step)
     )
-    arc = _longest_arc(shows)
-    if arc is None or not MIN_ARC * rays <= arc.size <= MAX_ARC * rays:
-        return None
-    found = shows[arc]
-    if np.count_nonzero(found) < SHOWN * arc.size:
+    arc = _shown_arc(shows)
+    if arc is None:
         return None
     spread, level = np.full(rays, np.nan), np.full(rays, np.nan)
     spread[asked], level[asked] = high - low, middle
@@ -527,14 +539,7 @@ def _inner_falls(
         and np.nanmedian(spread[arc]) >= LIGHT_TEXTURE * noise
     ):
         return None
-    steps = np.arange(arc.size)
-    limit = np.interp(steps, steps[found], falls.at[arc][found].astype(np.float64))
-    depth = (falls.leaves[arc] - limit) * SPACING
-    if np.median(depth) < MIN_BAND:
-        return None
-    from scipy.ndimage import median_filter
-
-    return arc, median_filter(limit, size=5, mode="nearest"), depth
+    return _arc_edges(falls, arc, shows[arc])
 
 
 def _row_quantiles(
