@@ -20,7 +20,11 @@ there the profile stays low past the window and the ray is left alone. A
 dark blob of the ground's texture just past a sharp edge makes a valley too,
 but past a stretch of ground (the profile rises on its way down to it) and on
 a few rays only; a rim darkens a good part of the outline, so nothing moves
-unless ``MIN_SHARE`` of the rays do.
+unless ``MIN_SHARE`` of the rays do. A thin dark line hugging a sharp edge (a
+coin's side, a contact shadow) is a valley too, but within ``MIN_SHIFT`` of
+the outline. That distance is read across the outline, not along the ray: a
+ray that meets the outline aslant, beside a star's arm, crosses a line a
+pixel wide over two or three.
 """
 
 from __future__ import annotations
@@ -37,7 +41,7 @@ __all__ = ["rim_on"]
 #: How far past the outline a rim's valley may end, in equivalent radii of
 #: the region (at least ``MIN_WIDTH`` pixels).
 WIDTH = 0.15
-MIN_WIDTH = 3.0
+MIN_WIDTH = 5.0
 #: A valley counts when it lies below the ground's level by this share of
 #: the step from the ground to the rock ...
 DEPTH = 0.15
@@ -52,8 +56,10 @@ MIN_SHARE = 0.15
 #: On its way down to the valley the profile rises by at most this many
 #: robust spreads of the ground.
 RISE = 1.0
-#: Shifts under this many pixels are no rim's.
-MIN_SHIFT = 2.5
+#: Shifts under this many pixels, across the outline, are no rim's.
+MIN_SHIFT = 1.75
+#: Rays over which the outline's distance is smoothed before its slope is read.
+INCIDENCE_RAYS = 5
 #: Rays cast from the rock's centre, and the spacing of samples along them (pixels).
 RAYS = 360
 SPACING = 0.5
@@ -128,8 +134,10 @@ def rim_on(
     found = whole & deep & back & narrow & descends
     shift = np.where(found, np.maximum(radii[index[np.arange(RAYS), bottom]] - radii[last], 0.0), 0.0)
     # A valley right at the outline is a dark line beside a sharp edge (a
-    # coin's side, a contact shadow), outside the object.
-    shift[shift < MIN_SHIFT] = 0.0
+    # coin's side, a contact shadow), outside the object. Its distance is
+    # read across the outline: a ray that meets the outline aslant (a star's
+    # arm) sees a thin line beside it as a wide one.
+    shift[shift * _incidence(radii[last]) < MIN_SHIFT] = 0.0
     shift = ndimage.median_filter(shift, size=SMOOTH_RAYS, mode="wrap")
     # A rim darkens a good part of the outline; a dip of the ground's
     # texture beside it, a few rays.
@@ -140,6 +148,16 @@ def rim_on(
     # Only the band between the two stars is new: a concave outline's bays,
     # which rays from the centre do not see, stay out.
     return mask | (outer & ~before)
+
+
+def _incidence(outline: NDArray[np.float64]) -> NDArray[np.float64]:
+    """The cosine of the angle between each ray and the outline's normal
+    where the ray leaves it, from the outline's distances along evenly turned rays."""
+    from scipy import ndimage
+
+    r = ndimage.median_filter(outline, size=INCIDENCE_RAYS, mode="wrap")
+    slope = (np.roll(r, -1) - np.roll(r, 1)) * (r.size / (4.0 * math.pi))
+    return r / np.maximum(np.hypot(r, slope), 1e-9)
 
 
 def _star(
