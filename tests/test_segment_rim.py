@@ -82,12 +82,19 @@ def flat_disc(line: float, line_width: int = 1, band: int = 0) -> tuple[np.ndarr
     rr, cc = np.mgrid[: SHAPE[0], : SHAPE[1]].astype(np.float64)
     distance = np.hypot(rr - CENTRE[0], cc - CENTRE[1])
     disc = distance <= 50.0
-    photo = np.where(disc, 0.8, 0.4)
-    photo[(distance > 50.0) & (distance <= 50.0 + line_width)] = line
+    dark = (distance > 50.0) & (distance <= 50.0 + line_width)
     if band:
-        photo[~disc & (distance <= 50.0 + band) & (cc > CENTRE[1] + 10)] = line
+        dark |= ~disc & (distance <= 50.0 + band) & (cc > CENTRE[1] + 10)
+    return flat_photo(disc, dark, line), disc
+
+
+def flat_photo(flat: np.ndarray, dark: np.ndarray, line: float) -> np.ndarray:
+    """Log brightness of a flat light object (``flat``, 0.8) on darker ground
+    (0.4) with ``dark`` pixels at brightness ``line``, blurred by a pixel."""
+    photo = np.where(flat, 0.8, 0.4)
+    photo[dark] = line
     photo = cv2.GaussianBlur(photo.astype(np.float32), (0, 0), 1.0)
-    return np.log(photo + 0.04).astype(np.float32), disc
+    return np.log(photo + 0.04).astype(np.float32)
 
 
 def test_a_dark_line_right_at_a_sharp_edge_is_outside_the_object():
@@ -127,10 +134,7 @@ def flat_star(depth: float, line: float = 0.1) -> tuple[np.ndarray, np.ndarray]:
     dy, dx = rr - CENTRE[0], cc - CENTRE[1]
     edge = 60.0 * (1.0 - depth * (1.0 - np.cos(5.0 * np.arctan2(dy, dx))) / 2.0)
     star = np.hypot(dy, dx) <= edge
-    photo = np.where(star, 0.8, 0.4)
-    photo[ndimage.binary_dilation(star) & ~star] = line
-    photo = cv2.GaussianBlur(photo.astype(np.float32), (0, 0), 1.0)
-    return np.log(photo + 0.04).astype(np.float32), star
+    return flat_photo(star, ndimage.binary_dilation(star) & ~star, line), star
 
 
 @pytest.mark.parametrize("depth", [0.3, 0.6])
