@@ -118,6 +118,20 @@ def test_the_larger_of_two_equally_clear_rocks_is_the_main_one():
     np.testing.assert_allclose([r.outline.centroid_rowcol for r in rocks], [(100, 80), (90, 220)], atol=0.2)
 
 
+@pytest.mark.parametrize(("small_radius", "kept"), [(8, False), (12, True)])
+def test_among_several_rocks_a_region_under_a_fifth_of_the_median_is_none(small_radius, kept):
+    # Four rocks of radius 20 and a fifth of radius 8 (0.16 of their area,
+    # under min_median_area's 0.2) or 12 (0.36). The small one is dropped,
+    # or kept; with min_median_area 0 it is always kept.
+    shape = (240, 320)
+    centres = [(60, 60), (60, 260), (180, 60), (180, 260)]
+    rocks = [(coverage(shape, c, (20, 20)), 0.9) for c in centres]
+    rocks.append((coverage(shape, (120, 160), (small_radius, small_radius)), 0.9))
+    pixels = photo_of(rocks, shape=shape)
+    assert segment(pixels, all_rocks=True).n_rocks == (5 if kept else 4)
+    assert segment(pixels, SegmentConfig(min_median_area=0.0), all_rocks=True).n_rocks == 5
+
+
 def test_of_two_rocks_of_one_size_the_clearer_is_the_main_one():
     shape = (200, 300)
     faint, clear = coverage(shape, (100, 80), (30, 30)), coverage(shape, (100, 220), (30, 30))
@@ -256,6 +270,8 @@ def test_bad_pixels_are_refused_with_the_fix(pixels, message):
         ({"polarity": "bright"}, "auto, dark, light"),
         ({"smooth_sigma": -1.0}, "non-negative"),
         ({"work_size": 300.5}, "integer"),
+        ({"min_median_area": 1.5}, "min_median_area at most 1"),
+        ({"min_median_area": -0.2}, "min_median_area must be a non-negative number"),
     ],
 )
 def test_bad_settings_are_refused(settings, message):

@@ -108,6 +108,16 @@ def test_specks_are_judged_against_the_largest_rock_not_the_largest_cluster():
     assert crowd.n_found <= 24, crowd
 
 
+def test_a_piece_far_smaller_than_the_typical_rock_is_no_rock_of_its_own():
+    # Development scene 32: 32 rocks, and a 33rd region, a piece under a
+    # fifth of the median rock's area, until such regions were dropped
+    # (min_median_area): the count is exact, and every rock matched before
+    # still is.
+    crowd = judged("crowded", 32)
+    assert crowd.n_found == crowd.n_true == 32, crowd
+    assert crowd.matched >= 30, crowd
+
+
 @pytest.mark.parametrize(
     ("condition", "index"), [("plain", 9), ("touching-pebbles", 2), ("touching-pebbles", 3)]
 )

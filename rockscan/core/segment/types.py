@@ -61,6 +61,10 @@ class SegmentConfig:
     min_relative_area : float
         With several rocks, smallest rock kept as a fraction of the largest
         (once touching rocks are parted).
+    min_median_area : float
+        With three rocks or more, smallest rock kept as a fraction of the
+        median rock's area: what is smaller is a piece of a textured rock or
+        a patch of ground between rocks (0 keeps every rock).
     polarity : {"auto", "dark", "light"}
         Whether the rock is darker or lighter than the ground.
     """
@@ -79,6 +83,7 @@ class SegmentConfig:
     min_contrast: float = 0.05
     min_area_fraction: float = 0.002
     min_relative_area: float = 0.05
+    min_median_area: float = 0.2
     polarity: str = "auto"
 
     def __post_init__(self) -> None:
@@ -103,14 +108,17 @@ class SegmentConfig:
             "z_grow",
             "min_area_fraction",
             "min_relative_area",
+            "min_median_area",
         ):
             value = getattr(self, name)
             if not (isinstance(value, (int, float)) and math.isfinite(value) and value >= 0):
                 raise ParameterError(f"{name} must be a non-negative number, got {value!r}")
         if not 0 < self.z_grow <= self.z_detect:
             raise ParameterError("z_grow must be positive and at most z_detect")
-        if self.min_area_fraction >= 0.5 or self.min_relative_area > 1:
-            raise ParameterError("min_area_fraction must be below 0.5 and min_relative_area at most 1")
+        if self.min_area_fraction >= 0.5 or self.min_relative_area > 1 or self.min_median_area > 1:
+            raise ParameterError(
+                "min_area_fraction must be below 0.5, min_relative_area and min_median_area at most 1"
+            )
         if self.polarity not in POLARITIES:
             raise ParameterError(f"polarity must be one of {', '.join(POLARITIES)}; got {self.polarity!r}")
 
