@@ -448,6 +448,11 @@ def _band_quartiles(
     return _row_quantiles(profiles[rays, :span], band, (0.25, 0.5, 0.75))
 
 
+#: Along the arc of rays that shows a shadow: the rays, where on each the rock
+#: ends (sample index) and how wide the shadow is there (pixels).
+_ArcEdges = tuple[NDArray[np.int64], NDArray[np.float64], NDArray[np.float64]]
+
+
 def _inner_edges(
     profiles: NDArray[np.float32],
     inside: NDArray[np.bool_],
@@ -455,7 +460,7 @@ def _inner_edges(
     ground: float,
     step: float,
     noise: float,
-) -> tuple[NDArray[np.int64], NDArray[np.float64], NDArray[np.float64]] | None:
+) -> _ArcEdges | None:
     """The arc of rays that show a shadow, where on each the rock ends
     (sample index) and how wide the shadow is there (pixels); None without one."""
     rays = profiles.shape[0]
@@ -488,9 +493,7 @@ def _shown_arc(shows: NDArray[np.bool_]) -> NDArray[np.int64] | None:
     return arc
 
 
-def _arc_edges(
-    rises: _Rises, arc: NDArray[np.int64], found: NDArray[np.bool_]
-) -> tuple[NDArray[np.int64], NDArray[np.float64], NDArray[np.float64]] | None:
+def _arc_edges(rises: _Rises, arc: NDArray[np.int64], found: NDArray[np.bool_]) -> _ArcEdges | None:
     """Along an arc, where the rock ends (sample index, smoothed) and how wide
     the shadow is (pixels); None when it is narrower than ``MIN_BAND``."""
     # Rays of the arc without a rise of their own take their neighbours'.
@@ -510,7 +513,7 @@ def _inner_falls(
     ground: float,
     step: float,
     noise: float,
-) -> tuple[NDArray[np.int64], NDArray[np.float64], NDArray[np.float64]] | None:
+) -> _ArcEdges | None:
     """For a rock lighter than the ground (``step`` its level above the
     ground's): the arc of rays whose last fall leads from the rock's rim to a
     shadow's band, where on each the rock ends (sample index) and how wide
