@@ -94,7 +94,7 @@ def test_the_score_is_a_probability_and_the_fit_reads_the_choice_as_expected():
 def test_a_rock_chosen_among_the_whole_pool_is_scored_by_the_fitted_model():
     # Development photo "shaded" 0 is decided by the whole pool.
     pixels, _, _ = bench_segment.photo("dev", "shaded", 0)
-    _, features = _chosen(pixels, SegmentConfig())
+    _, features, _ = _chosen(pixels, SegmentConfig())
     assert features is not None
     assert segment(pixels).rocks[0].score == pytest.approx(outline_confidence(features))
 
@@ -152,7 +152,7 @@ def test_a_stars_arms_do_not_count_against_its_outline_in_hard_photos():
     trusted = 0
     for seed in range(1, 5):
         pixels = render_photo(star.params, config, rng=seed, name=star.name).pixels
-        found, features = _chosen(pixels, SegmentConfig())
+        found, features, _ = _chosen(pixels, SegmentConfig())
         assert features is not None
         assert notch(found.rocks[0].mask) < 0.02
         trusted += segment(pixels).rocks[0].score >= 0.5

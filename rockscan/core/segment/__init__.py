@@ -126,6 +126,13 @@ Steps (see :func:`segment`):
     into a narrow valley darker than the ground and rises again to it, on
     at least 15% of the rays, the outline moves out to the valley's bottom,
     the rock's occluding edge (``rockscan.core.segment.rim``).
+11. **Edge.** Unless the fast path took the photo, the outline of a rock
+    found in luminance moves, along rays from its centre, to the steepest
+    change of brightness within ``snap.REACH`` (1.5) photo pixels, where the
+    half-way level missed it by at least half that (a limb that darkens or
+    brightens towards the edge, a neighbour or the ground's gradient beside
+    it: ``rockscan.core.segment.snap``). Before the rim: a rim's valley lies
+    past the edge's steepest fall.
 
 Known limits: a shadow whose edge with the rock's shaded side the photo does
 not show (the two as dark) stays with a dark rock; a light rock's smooth
@@ -157,8 +164,11 @@ from rockscan.core.segment.pebbles import lobed, pebbles_off
 from rockscan.core.segment.rim import rim_on
 from rockscan.core.segment.score import WEIGHTS, OutlineEvidence, outline_score
 from rockscan.core.segment.shadow import MIN_AREA as SHADOW_MIN_AREA
-from rockscan.core.segment.shadow import measured_region, shadow_left_out, shadow_off
+from rockscan.core.segment.shadow import Region, measured_region, shadow_left_out, shadow_off
 from rockscan.core.segment.slivers import slivers_off
+from rockscan.core.segment.snap import MARGIN as SNAP_MARGIN
+from rockscan.core.segment.snap import REACH as SNAP_REACH
+from rockscan.core.segment.snap import snapped
 from rockscan.core.segment.split import (
     CONVEX_CELL,
     largest_part,
@@ -237,47 +247,51 @@ def segment(
     docstring.
     """
     config = config or SegmentConfig()
-    found = _main_rock(pixels, config, all_rocks=all_rocks)
-    return found if all_rocks else _finished(found, pixels)
+    found, easy = _main_rock(pixels, config, all_rocks=all_rocks)
+    return found if all_rocks else _finished(found, pixels, snap=not easy)
 
 
-def _finished(found: Segmentation, pixels: NDArray[np.generic]) -> Segmentation:
-    """The main rock with touching pebbles and slivers cut off and its edges seen to (steps 8-10);
-    an outline an alpha channel gave stands as it is."""
+def _finished(found: Segmentation, pixels: NDArray[np.generic], *, snap: bool = True) -> Segmentation:
+    """The main rock with touching pebbles and slivers cut off and its edges seen to
+    (steps 8-11, step 11 only with ``snap``); an outline an alpha channel gave stands as it is."""
     if found.channel == "alpha":
         return found
-    return _edges(_slivers_off(_pebbles_off(found)), pixels)
+    return _edges(_slivers_off(_pebbles_off(found)), pixels, snap=snap)
 
 
-def _main_rock(pixels: NDArray[np.generic], config: SegmentConfig, *, all_rocks: bool) -> Segmentation:
-    """The fast path's segmentation, or the candidate the choice takes, scored by how sure it is."""
-    found, features = _chosen(pixels, config, all_rocks=all_rocks)
+def _main_rock(
+    pixels: NDArray[np.generic], config: SegmentConfig, *, all_rocks: bool
+) -> tuple[Segmentation, bool]:
+    """The fast path's segmentation, or the candidate the choice takes, scored by
+    how sure it is; and whether it came by the fast path."""
+    found, features, easy = _chosen(pixels, config, all_rocks=all_rocks)
     if features is None:
-        return found
+        return found, easy
     main = dataclasses.replace(found.rocks[0], score=outline_confidence(features))
-    return dataclasses.replace(found, rocks=(main, *found.rocks[1:]))
+    return dataclasses.replace(found, rocks=(main, *found.rocks[1:])), easy
 
 
 def _chosen(
     pixels: NDArray[np.generic], config: SegmentConfig, *, all_rocks: bool = False
-) -> tuple[Segmentation, NDArray[np.float64] | None]:
-    """The fast path's segmentation, or the candidate the choice takes; and for a
+) -> tuple[Segmentation, NDArray[np.float64] | None, bool]:
+    """The fast path's segmentation, or the candidate the choice takes; for a
     choice among the whole pool, what its score is read from
-    (``confidence.confidence_features``; None otherwise, the score set).
+    (``confidence.confidence_features``; None otherwise, the score set); and
+    whether the fast path took the photo.
     """
     pool = _candidate_pool(pixels, config, all_rocks=all_rocks, fast=True)
     if isinstance(pool, Segmentation):
-        return pool, None
+        return pool, None, True
     candidates = pool.candidates
     # The refinements (GrabCut) cost most: they are made only when the choice
     # among the detected candidates, by trees fitted on such pools, is not already sure.
     index, detected = choose_ranked(*zip(*candidates, strict=True), detected_only=True)
     if detected.max() >= FAST_PROBABILITY:
-        return _main_scored(candidates[index][0], detected), None
+        return _main_scored(candidates[index][0], detected), None, False
     candidates = candidates + pool.refined()
     ranking = rank(*zip(*candidates, strict=True))
     found = _without_shadow(candidates, ranking.index, ranking.probabilities, pixels)
-    return found, confidence_features(ranking, float(detected.max()), notch(found.rocks[0].mask))
+    return found, confidence_features(ranking, float(detected.max()), notch(found.rocks[0].mask)), False
 
 
 def _without_shadow(
@@ -332,14 +346,15 @@ def _slivers_off(found: Segmentation) -> Segmentation:
     return _main_cut(found, slivers_off(found.rocks[0].mask))
 
 
-def _edges(found: Segmentation, pixels: NDArray[np.generic]) -> Segmentation:
+def _edges(found: Segmentation, pixels: NDArray[np.generic], *, snap: bool = True) -> Segmentation:
     """The main rock with a cast shadow that joined it taken off
-    (``shadow.shadow_off``), then a dark rim its outline left out taken in
-    (``rim.rim_on``).
+    (``shadow.shadow_off``), with ``snap`` its outline moved to the steepest
+    edge beside it (``snap.snapped``), then a dark rim its outline left out
+    taken in (``rim.rim_on``).
 
-    Both are judged on the photo's log brightness around the rock, brought
+    All are judged on the photo's log brightness around the rock, brought
     to the working grid the rock was outlined on, and on the rock's and the
-    ground's levels, read once for both. A rock grown by its rim keeps its score.
+    ground's levels, read once for all. A rock cut, moved or grown keeps its score.
     """
     rock = found.rocks[0]
     window, gray = _rock_window(found, pixels)
@@ -354,9 +369,62 @@ def _edges(found: Segmentation, pixels: NDArray[np.generic]) -> Segmentation:
         rock = found.rocks[0]
         window, gray = _rock_window(found, pixels)
         mask = _placed(rock, window, found.scale_rowcol)
-        region = None
+        region = measured_region(gray, mask, SHADOW_MIN_AREA)
+        if region is None:
+            return found
+    if snap and found.channel == "luminance":
+        found, mask, region = _snapped(found, window, gray, mask, region)
     grown = rim_on(gray, mask, region)
     return found if grown is mask else _main_grown(found, window, mask, grown)
+
+
+def _snapped(
+    found: Segmentation,
+    window: tuple[int, int, int, int],
+    gray: NDArray[np.float32],
+    mask: NDArray[np.bool_],
+    region: Region,
+) -> tuple[Segmentation, NDArray[np.bool_], Region]:
+    """The main rock with its outline moved to the steepest edge beside it
+    (``snap.snapped``), its mask on ``window`` and its region; as they were
+    when nothing moved. The rock keeps its score."""
+    import cv2
+
+    rock = found.rocks[0]
+    (r0, r1, c0, c1), (o0, o1), (h, w) = window, rock.origin_rowcol, rock.mask.shape
+    reach = SNAP_REACH / (0.5 * (found.scale_rowcol[0] + found.scale_rowcol[1]))
+    # The rock's own window, wide enough for its outline to move and be read across.
+    pad = math.ceil(reach + SNAP_MARGIN) + 1
+    R0, R1, C0, C1 = max(r0, o0 - pad), min(r1, o0 + h + pad), max(c0, o1 - pad), min(c1, o1 + w + pad)
+    coverage = np.zeros((R1 - R0, C1 - C0), np.float32)
+    coverage[o0 - R0 : o0 - R0 + h, o1 - C0 : o1 - C0 + w] = rock.coverage
+    _, _, _, (rock_level, ground_level, _) = region
+    # A blur spreads light, not its logarithm: the steepest change of the
+    # log brightness lies towards the dark side of an edge.
+    light = np.exp(gray[R0 - r0 : R1 - r0, C0 - c0 : C1 - c0])
+    moved = snapped(light, coverage, rock_level > ground_level, reach)
+    if moved is None:
+        return found, mask, region
+    kept = largest_part(moved >= 0.5)
+    if kept is None:
+        return found, mask, region
+    kept = _fill_holes(kept)
+    # The mask and its coverage agree: filled holes are rock, anything else
+    # past half-way that is not the rock's one piece is ground.
+    moved[kept & (moved < 0.5)] = 1.0
+    moved[~kept & (moved >= 0.5)] = 0.49
+    main = _cropped(dataclasses.replace(rock, mask=kept, coverage=moved, origin_rowcol=(R0, C0)))
+    labels = found.labels.copy()
+    view = labels[R0:R1, C0:C1]
+    view[~kept & (view == 1)] = 0
+    view[kept & (view == 0)] = 1
+    found = dataclasses.replace(found, labels=labels, rocks=(main, *found.rocks[1:]))
+    mask = np.zeros(mask.shape, bool)
+    mask[R0 - r0 : R1 - r0, C0 - c0 : C1 - c0] = kept
+    mask8 = mask.view(np.uint8)
+    moments = cv2.moments(mask8, binaryImage=True)
+    area = moments["m00"]
+    return found, mask, (mask8, (moments["m01"] / area, moments["m10"] / area), area, region[3])
 
 
 def _main_grown(
