@@ -63,7 +63,7 @@ def test_a_crop_is_outlined_around_the_rock_it_is_centred_on():
 def test_a_crops_outline_moves_to_the_rocks_edge(index):
     # Development crops whose rock darkens towards its rim: the half-way
     # level runs a pixel or so inside the edge (IoU 0.883 and 0.873) until
-    # the outline moves to the steepest change beside it (0.909 and 0.912).
+    # the outline moves to the steepest change beside it (0.911 and 0.909).
     score = judged("crop-neighbours", index)
     assert score.iou >= 0.9, round(score.iou, 3)
 

@@ -129,7 +129,7 @@ Steps (see :func:`segment`):
 11. **Edge.** Unless the fast path took the photo, the outline of a rock
     found in luminance moves, along rays from its centre, to the steepest
     change of brightness within ``snap.REACH`` (1.5) photo pixels, where the
-    half-way level missed it by at least half that (a limb that darkens or
+    half-way level missed it by about half that or more (a limb that darkens or
     brightens towards the edge, a neighbour or the ground's gradient beside
     it: ``rockscan.core.segment.snap``). Before the rim: a rim's valley lies
     past the edge's steepest fall.
