@@ -27,6 +27,8 @@ import math
 import numpy as np
 from numpy.typing import NDArray
 
+from rockscan.core.segment.shadow import ray_profiles
+
 __all__ = ["snapped"]
 
 #: How far an outline point may move, in photo pixels, inward or outward.
@@ -161,21 +163,12 @@ def _outermost(
     coverage: NDArray[np.float32], inside: NDArray[np.uint8], centre: tuple[float, float]
 ) -> NDArray[np.float64]:
     """The distance from ``centre`` of the region's outermost edge along each
-    ray, to a pixel (0 where a ray meets no rock)."""
-    import cv2
-
-    x, y, w, h = cv2.boundingRect(inside)
-    corners = np.array([[y, x], [y, x + w], [y + h, x], [y + h, x + w]], np.float64)
-    radii = np.arange(0.0, float(np.hypot(*(corners - centre).T).max()) + 1.0)
-    angles = np.arange(RAYS) * (2.0 * math.pi / RAYS)
-    map_x = (centre[1] + np.outer(np.cos(angles), radii)).astype(np.float32)
-    map_y = (centre[0] + np.outer(np.sin(angles), radii)).astype(np.float32)
-    over = (
-        cv2.remap(coverage, map_x, map_y, cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT, borderValue=0)
-        >= 0.5
-    )
+    ray, to a pixel (0 where a ray meets no rock); a ray that leaves the
+    window on the rock finds none either."""
+    _, radii, _, cover = ray_profiles(coverage, inside, centre, 1.0, RAYS, 1.0, 0.0)
+    over = cover >= 0.5
     last = radii.size - 1 - np.argmax(over[:, ::-1], axis=1)
-    return np.where(over.any(axis=1), radii[last] + 0.5, 0.0)
+    return np.where(over.any(axis=1) & ~over[:, -1], radii[last] + 0.5, 0.0)
 
 
 def _moved(
