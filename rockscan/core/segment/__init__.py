@@ -396,8 +396,7 @@ def _snapped(
     # The rock's own window, wide enough for its outline to move and be read across.
     pad = math.ceil(reach + SNAP_MARGIN) + 1
     R0, R1, C0, C1 = max(r0, o0 - pad), min(r1, o0 + h + pad), max(c0, o1 - pad), min(c1, o1 + w + pad)
-    coverage = np.zeros((R1 - R0, C1 - C0), np.float32)
-    coverage[o0 - R0 : o0 - R0 + h, o1 - C0 : o1 - C0 + w] = rock.coverage
+    coverage = _main_coverage(rock, (R0, R1, C0, C1), (R1 - R0, C1 - C0))
     _, _, _, (rock_level, ground_level, _) = region
     # A blur spreads light, not its logarithm: the steepest change of the
     # log brightness lies towards the dark side of an edge.
@@ -413,12 +412,7 @@ def _snapped(
     # past half-way that is not the rock's one piece is ground.
     moved[kept & (moved < 0.5)] = 1.0
     moved[~kept & (moved >= 0.5)] = 0.49
-    main = _cropped(dataclasses.replace(rock, mask=kept, coverage=moved, origin_rowcol=(R0, C0)))
-    labels = found.labels.copy()
-    view = labels[R0:R1, C0:C1]
-    view[~kept & (view == 1)] = 0
-    view[kept & (view == 0)] = 1
-    found = dataclasses.replace(found, labels=labels, rocks=(main, *found.rocks[1:]))
+    found = _main_replaced(found, (R0, C0), kept, moved)
     mask = np.zeros(mask.shape, bool)
     mask[R0 - r0 : R1 - r0, C0 - c0 : C1 - c0] = kept
     mask8 = mask.view(np.uint8)
@@ -436,15 +430,33 @@ def _main_grown(
     """The segmentation with its main rock (``mask`` on ``window``) grown to
     ``grown``: what is added is rock in the coverage and the labels; other
     rocks are left as they are."""
-    rock = found.rocks[0]
-    (r0, _, c0, _), (o0, o1), (h, w) = window, rock.origin_rowcol, rock.mask.shape
-    coverage = np.zeros(mask.shape, np.float32)
-    coverage[o0 - r0 : o0 - r0 + h, o1 - c0 : o1 - c0 + w] = rock.coverage
+    coverage = _main_coverage(found.rocks[0], window, mask.shape)
     coverage[grown & ~mask] = 1.0
-    main = _cropped(dataclasses.replace(rock, mask=grown, coverage=coverage, origin_rowcol=(r0, c0)))
+    return _main_replaced(found, (window[0], window[2]), grown, coverage)
+
+
+def _main_coverage(
+    rock: RockMask, window: tuple[int, int, int, int], shape: tuple[int, int]
+) -> NDArray[np.float32]:
+    """A rock's coverage placed on a window (rows r0:r1, cols c0:c1) of its working grid."""
+    (r0, _, c0, _), (o0, o1), (h, w) = window, rock.origin_rowcol, rock.mask.shape
+    coverage = np.zeros(shape, np.float32)
+    coverage[o0 - r0 : o0 - r0 + h, o1 - c0 : o1 - c0 + w] = rock.coverage
+    return coverage
+
+
+def _main_replaced(
+    found: Segmentation, origin: tuple[int, int], mask: NDArray[np.bool_], coverage: NDArray[np.float32]
+) -> Segmentation:
+    """The segmentation with its main rock's mask and coverage replaced by
+    ``mask`` and ``coverage`` on a window from ``origin``, in the labels too;
+    other rocks are left as they are."""
+    r0, c0 = origin
+    main = _cropped(dataclasses.replace(found.rocks[0], mask=mask, coverage=coverage, origin_rowcol=origin))
     labels = found.labels.copy()
-    view = labels[r0 : r0 + grown.shape[0], c0 : c0 + grown.shape[1]]
-    view[grown & (view == 0)] = 1
+    view = labels[r0 : r0 + mask.shape[0], c0 : c0 + mask.shape[1]]
+    view[~mask & (view == 1)] = 0
+    view[mask & (view == 0)] = 1
     return dataclasses.replace(found, labels=labels, rocks=(main, *found.rocks[1:]))
 
 
