@@ -47,7 +47,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 import bench_segment as bench
 import fitting
 import scenes
-from fitting import measured, set_cache, signed_logistic
+from fitting import array_source, measured, set_cache, signed_logistic, tree_arrays
 
 from rockscan.core.errors import NoRockFoundError
 from rockscan.core.segment import FAST_PROBABILITY
@@ -129,40 +129,6 @@ def fit_trees(features: list[np.ndarray], ious: list[np.ndarray], args, seed: in
     return model.fit(x, y)
 
 
-def tree_arrays(model) -> dict[str, np.ndarray | float | int]:
-    """The fitted trees as flat node arrays (``choice_model``): a leaf's feature is -1."""
-    nodes = [predictor.nodes for (predictor,) in model._predictors]
-    sizes = np.array([len(n) for n in nodes])
-    roots = np.concatenate([[0], np.cumsum(sizes)[:-1]])
-    flat = np.concatenate(nodes)
-    offset = np.repeat(roots, sizes)
-    leaf = flat["is_leaf"].astype(bool)
-    return {
-        "ROOTS": roots.astype(np.int64),
-        "FEATURE": np.where(leaf, -1, flat["feature_idx"]).astype(np.int64),
-        "THRESHOLD": np.where(leaf, 0.0, flat["num_threshold"]).astype(np.float64),
-        "LEFT": np.where(leaf, 0, flat["left"] + offset).astype(np.int64),
-        "RIGHT": np.where(leaf, 0, flat["right"] + offset).astype(np.int64),
-        "VALUE": np.where(leaf, flat["value"], 0.0).astype(np.float64),
-        "BIAS": float(np.ravel(model._baseline_prediction)[0]),
-        "DEPTH": int(flat["depth"].max()),
-    }
-
-
-def _array_source(name: str, values: np.ndarray, kind: str) -> str:
-    """``NAME = np.array([...], dtype=...)`` with the values wrapped to the line length."""
-    items = [repr(float(v)) if kind == "float64" else str(int(v)) for v in values]
-    lines, line = [], ""
-    for item in items:
-        if line and len(line) + len(item) > 96:
-            lines.append(line.rstrip())
-            line = ""
-        line += item + ", "
-    lines.append(line.rstrip())
-    body = "".join(f"        {text}\n" for text in lines)
-    return f"{name} = np.array(\n    [\n{body}    ],\n    dtype=np.{kind},\n)\n"
-
-
 def write_model(arrays: dict, detected_arrays: dict, path: Path, summary: str) -> None:
     """Write both models' trees as a module of numpy arrays (``choice_model``): the whole
     pool's, and those of the detected candidates alone under the prefix ``DETECTED_``."""
@@ -176,10 +142,10 @@ def write_model(arrays: dict, detected_arrays: dict, path: Path, summary: str) -
     for prefix, trees in (("", arrays), ("DETECTED_", detected_arrays)):
         parts += [f"{prefix}BIAS = {trees['BIAS']!r}\n", f"{prefix}DEPTH = {trees['DEPTH']}\n"]
         parts += [
-            _array_source(prefix + name, trees[name], "int64")
+            array_source(prefix + name, trees[name], "int64")
             for name in ("ROOTS", "FEATURE", "LEFT", "RIGHT")
         ]
-        parts += [_array_source(prefix + name, trees[name], "float64") for name in ("THRESHOLD", "VALUE")]
+        parts += [array_source(prefix + name, trees[name], "float64") for name in ("THRESHOLD", "VALUE")]
     path.write_text("\n".join(parts))
 
 

@@ -1,5 +1,6 @@
 """What the fitting scripts share: measuring development photos in parallel,
-kept between runs, and a logistic model whose weights keep given signs."""
+kept between runs, a logistic model whose weights keep given signs, and
+gradient-boosted trees written as modules of numpy arrays."""
 
 from __future__ import annotations
 
@@ -109,3 +110,37 @@ def signed_logistic(
     bounds = [(None, None)] + [{1: (0.0, None), -1: (None, 0.0), 0: (None, None)}[s] for s in signs]
     w = minimize(loss, np.zeros(z.shape[1] + 1), jac=True, method="L-BFGS-B", bounds=bounds).x
     return w[1:] / sd, float(w[0] - np.sum(w[1:] * mu / sd))
+
+
+def tree_arrays(model) -> dict[str, np.ndarray | float | int]:
+    """The fitted trees as flat node arrays (``choice_model``, ``offset_model``): a leaf's feature is -1."""
+    nodes = [predictor.nodes for (predictor,) in model._predictors]
+    sizes = np.array([len(n) for n in nodes])
+    roots = np.concatenate([[0], np.cumsum(sizes)[:-1]])
+    flat = np.concatenate(nodes)
+    offset = np.repeat(roots, sizes)
+    leaf = flat["is_leaf"].astype(bool)
+    return {
+        "ROOTS": roots.astype(np.int64),
+        "FEATURE": np.where(leaf, -1, flat["feature_idx"]).astype(np.int64),
+        "THRESHOLD": np.where(leaf, 0.0, flat["num_threshold"]).astype(np.float64),
+        "LEFT": np.where(leaf, 0, flat["left"] + offset).astype(np.int64),
+        "RIGHT": np.where(leaf, 0, flat["right"] + offset).astype(np.int64),
+        "VALUE": np.where(leaf, flat["value"], 0.0).astype(np.float64),
+        "BIAS": float(np.ravel(model._baseline_prediction)[0]),
+        "DEPTH": int(flat["depth"].max()),
+    }
+
+
+def array_source(name: str, values: np.ndarray, kind: str) -> str:
+    """``NAME = np.array([...], dtype=...)`` with the values wrapped to the line length."""
+    items = [repr(float(v)) if kind == "float64" else str(int(v)) for v in values]
+    lines, line = [], ""
+    for item in items:
+        if line and len(line) + len(item) > 96:
+            lines.append(line.rstrip())
+            line = ""
+        line += item + ", "
+    lines.append(line.rstrip())
+    body = "".join(f"        {text}\n" for text in lines)
+    return f"{name} = np.array(\n    [\n{body}    ],\n    dtype=np.{kind},\n)\n"

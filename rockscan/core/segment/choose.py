@@ -57,6 +57,7 @@ from numpy.typing import NDArray
 from rockscan.core.segment import choice_model
 from rockscan.core.segment.pebbles import pebble_share
 from rockscan.core.segment.stats import logit
+from rockscan.core.segment.trees import tree_sum, trees_of
 from rockscan.core.segment.types import Segmentation
 
 __all__ = [
@@ -231,24 +232,6 @@ def _features(
     return np.array(rows, dtype=np.float64).reshape(len(candidates), len(FEATURES))
 
 
-class _Trees(NamedTuple):
-    """Gradient-boosted trees as flat node arrays (``choice_model``; a leaf's feature is -1)."""
-
-    bias: float
-    depth: int
-    roots: NDArray[np.int64]
-    feature: NDArray[np.int64]
-    left: NDArray[np.int64]
-    right: NDArray[np.int64]
-    threshold: NDArray[np.float64]
-    value: NDArray[np.float64]
-
-
-def _trees(prefix: str) -> _Trees:
-    names = ("BIAS", "DEPTH", "ROOTS", "FEATURE", "LEFT", "RIGHT", "THRESHOLD", "VALUE")
-    return _Trees(*(getattr(choice_model, prefix + name) for name in names))
-
-
 def choice_probabilities(features: NDArray, *, detected_only: bool = False) -> NDArray[np.float64]:
     """The choice model's probability that each candidate outlines the rock.
 
@@ -274,15 +257,7 @@ def choice_probabilities(features: NDArray, *, detected_only: bool = False) -> N
     probabilities : (n,) ndarray of float64
     """
     x = np.asarray(features, dtype=np.float64).reshape(-1, len(FEATURES))
-    model = _trees("DETECTED_" if detected_only else "")
-    rows = np.arange(x.shape[0])[:, None]
-    node = np.broadcast_to(model.roots, (x.shape[0], model.roots.size)).copy()
-    # Every tree is walked at once, one level a step; a leaf stays where it is.
-    for _ in range(model.depth):
-        feature = model.feature[node]
-        left = x[rows, np.maximum(feature, 0)] <= model.threshold[node]
-        node = np.where(feature < 0, node, np.where(left, model.left[node], model.right[node]))
-    t = np.clip(model.bias + model.value[node].sum(axis=1), -50.0, 50.0)
+    t = np.clip(tree_sum(x, trees_of(choice_model, "DETECTED_" if detected_only else "")), -50.0, 50.0)
     return 1.0 / (1.0 + np.exp(-t))
 
 
