@@ -52,10 +52,10 @@ def _measure(task: tuple[str, int]) -> tuple[str, int, float, float, np.ndarray 
     condition, index = task
     pixels, truth, _ = bench.photo("dev", condition, index)
     try:
-        found, features = _chosen(pixels, SegmentConfig())
+        found, features, easy = _chosen(pixels, SegmentConfig())
     except NoRockFoundError:
         return condition, index, 0.0, 0.0, None
-    final = _finished(found, pixels)
+    final = _finished(found, pixels, full=not easy, offsets=features is not None)
     iou = bench.iou(bench.segmentation_labels(final, truth.shape) == 1, truth == 1)
     # Before: the choice model's largest probability, the first feature's log-odds.
     before = final.rocks[0].score if features is None else 1.0 / (1.0 + np.exp(-features[0]))

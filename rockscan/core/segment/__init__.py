@@ -133,6 +133,13 @@ Steps (see :func:`segment`):
     brightens towards the edge, a neighbour or the ground's gradient beside
     it: ``rockscan.core.segment.snap``). Before the rim: a rim's valley lies
     past the edge's steepest fall.
+12. **Offsets.** For a rock chosen among the whole pool of candidates (the
+    choice was unsure), the outline moves along rays from its centre by
+    what regression trees, fitted on the development part of the
+    segmentation benchmark, read from the profile across it: how far the
+    truth's edge lay beyond such an outline there. Only moves of a pixel or
+    more count, in full from ``offset.MIN_MOVE`` (2) pixels of the working
+    grid, up to ``offset.REACH`` (3) (``rockscan.core.segment.offset``).
 
 Known limits: a shadow whose edge with the rock's shaded side the photo does
 not show (the two as dark) stays with a dark rock; a light rock's smooth
@@ -160,6 +167,7 @@ from rockscan.core.segment.channels import _LUMA, _at_scale, _channels, _check_p
 from rockscan.core.segment.choose import choose_ranked, rank
 from rockscan.core.segment.confidence import confidence_features, outline_confidence
 from rockscan.core.segment.detect import _detect, _Detection, _luminance_polarity
+from rockscan.core.segment.offset import offset_moved
 from rockscan.core.segment.pebbles import lobed, pebbles_off
 from rockscan.core.segment.rim import rim_on
 from rockscan.core.segment.score import WEIGHTS, OutlineEvidence, outline_score
@@ -247,28 +255,84 @@ def segment(
     docstring.
     """
     config = config or SegmentConfig()
-    found, easy = _main_rock(pixels, config, all_rocks=all_rocks)
-    return found if all_rocks else _finished(found, pixels, snap=not easy)
+    found, easy, pooled = _main_rock(pixels, config, all_rocks=all_rocks)
+    return found if all_rocks else _finished(found, pixels, full=not easy, offsets=pooled)
 
 
-def _finished(found: Segmentation, pixels: NDArray[np.generic], *, snap: bool = True) -> Segmentation:
+def _finished(
+    found: Segmentation, pixels: NDArray[np.generic], *, full: bool = True, offsets: bool = False
+) -> Segmentation:
     """The main rock with touching pebbles and slivers cut off and its edges seen to
-    (steps 8-11, step 11 only with ``snap``); an outline an alpha channel gave stands as it is."""
+    (steps 8-12): step 11 only with ``full`` (off the fast path), step 12 only
+    with ``offsets`` (a rock chosen among the whole pool of candidates); an
+    outline an alpha channel gave stands as it is."""
     if found.channel == "alpha":
         return found
-    return _edges(_slivers_off(_pebbles_off(found)), pixels, snap=snap)
+    found = _edges(_slivers_off(_pebbles_off(found)), pixels, snap=full)
+    return _offset_moved(found, pixels) if offsets else found
+
+
+#: A window (rows r0:r1, cols c0:c1), the log brightness and a rock's coverage
+#: on it, and the rock's level, the ground's and the ground's spread.
+_OnWindow = tuple[
+    tuple[int, int, int, int], NDArray[np.float32], NDArray[np.float32], tuple[float, float, float]
+]
+
+
+def _offset_inputs(found: Segmentation, pixels: NDArray[np.generic]) -> _OnWindow | None:
+    """What the offset step reads of the main rock: its window on the working
+    grid, the photo's log brightness there, the rock's coverage placed on it,
+    and the rock's and the ground's levels with the ground's spread; None when
+    the rock does not fit its window or is too small to measure."""
+    rock = found.rocks[0]
+    window, gray = _rock_window(found, pixels)
+    mask = _placed(rock, window, found.scale_rowcol)
+    if mask is None:
+        return None
+    region = measured_region(gray, mask, SHADOW_MIN_AREA)
+    if region is None:
+        return None
+    return window, gray, _main_coverage(rock, window, mask.shape), region[3]
+
+
+def _offset_moved(found: Segmentation, pixels: NDArray[np.generic]) -> Segmentation:
+    """The main rock with its outline moved by the learnt offsets
+    (``offset.offset_moved``); as it was when nothing moved. The rock keeps its score."""
+    inputs = _offset_inputs(found, pixels)
+    if inputs is None:
+        return found
+    window, gray, coverage, levels = inputs
+    scale = 0.5 * (found.scale_rowcol[0] + found.scale_rowcol[1])
+    moved = offset_moved(gray, coverage, levels, scale)
+    agreed = None if moved is None else _agreed(moved)
+    return found if agreed is None else _main_replaced(found, (window[0], window[2]), *agreed)
+
+
+def _agreed(moved: NDArray[np.float32]) -> tuple[NDArray[np.bool_], NDArray[np.float32]] | None:
+    """A moved coverage's rock (its largest piece past half-way, holes
+    filled) and the coverage made to agree with it: filled holes are rock,
+    anything else past half-way that is not the rock's one piece is ground;
+    None when nothing is past half-way."""
+    kept = largest_part(moved >= 0.5)
+    if kept is None:
+        return None
+    kept = _fill_holes(kept)
+    moved[kept & (moved < 0.5)] = 1.0
+    moved[~kept & (moved >= 0.5)] = 0.49
+    return kept, moved
 
 
 def _main_rock(
     pixels: NDArray[np.generic], config: SegmentConfig, *, all_rocks: bool
-) -> tuple[Segmentation, bool]:
+) -> tuple[Segmentation, bool, bool]:
     """The fast path's segmentation, or the candidate the choice takes, scored by
-    how sure it is; and whether it came by the fast path."""
+    how sure it is; whether it came by the fast path, and whether it was
+    chosen among the whole pool of candidates."""
     found, features, easy = _chosen(pixels, config, all_rocks=all_rocks)
     if features is None:
-        return found, easy
+        return found, easy, False
     main = dataclasses.replace(found.rocks[0], score=outline_confidence(features))
-    return dataclasses.replace(found, rocks=(main, *found.rocks[1:])), easy
+    return dataclasses.replace(found, rocks=(main, *found.rocks[1:])), easy, True
 
 
 def _chosen(
@@ -402,16 +466,10 @@ def _snapped(
     # log brightness lies towards the dark side of an edge.
     light = np.exp(gray[R0 - r0 : R1 - r0, C0 - c0 : C1 - c0])
     moved = snapped(light, coverage, rock_level > ground_level, reach)
-    if moved is None:
+    agreed = None if moved is None else _agreed(moved)
+    if agreed is None:
         return found, mask, region
-    kept = largest_part(moved >= 0.5)
-    if kept is None:
-        return found, mask, region
-    kept = _fill_holes(kept)
-    # The mask and its coverage agree: filled holes are rock, anything else
-    # past half-way that is not the rock's one piece is ground.
-    moved[kept & (moved < 0.5)] = 1.0
-    moved[~kept & (moved >= 0.5)] = 0.49
+    kept, moved = agreed
     found = _main_replaced(found, (R0, C0), kept, moved)
     mask = np.zeros(mask.shape, bool)
     mask[R0 - r0 : R1 - r0, C0 - c0 : C1 - c0] = kept

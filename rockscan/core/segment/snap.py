@@ -23,13 +23,14 @@ outline's bays, which rays from the centre do not see, stay as they are.
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import NDArray
 
 from rockscan.core.segment.shadow import ray_profiles
 
-__all__ = ["snapped"]
+__all__ = ["Across", "across_outline", "last_crossing", "snapped"]
 
 #: How far an outline point may move, in photo pixels, inward or outward.
 #: A rim or a level off by the blur's width moves the half-way level by a
@@ -101,32 +102,16 @@ def snapped(
     import cv2
     from scipy import ndimage
 
-    coverage = np.ascontiguousarray(coverage, np.float32)
-    inside = (coverage >= 0.5).view(np.uint8)
-    moments = cv2.moments(inside, binaryImage=True)
-    if moments["m00"] < 1 or reach <= 0:
+    if reach <= 0:
         return None
-    centre = (moments["m01"] / moments["m00"], moments["m10"] / moments["m00"])
-    outline = _outermost(coverage, inside, centre)
     # Profiles across the outline only: a band of the reach and a margin round it.
     span = reach + MARGIN
-    offsets = np.arange(-span, span + SPACING / 2, SPACING)
-    angles = np.arange(RAYS) * (2.0 * math.pi / RAYS)
-    radii = np.maximum(outline[:, None] + offsets[None, :], 0.0)
-    map_x = (centre[1] + np.cos(angles)[:, None] * radii).astype(np.float32)
-    map_y = (centre[0] + np.sin(angles)[:, None] * radii).astype(np.float32)
-    cover = cv2.remap(coverage, map_x, map_y, cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT, borderValue=0)
     image = cv2.GaussianBlur(np.asarray(brightness, np.float32), (0, 0), BLUR)
-    profiles = cv2.remap(image, map_x, map_y, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
-
-    # Where each ray leaves the rock last, between samples (sample units).
-    over = cover >= 0.5
-    seen = over.any(axis=1) & ~over[:, -1] & (outline > 0)
-    last = offsets.size - 1 - np.argmax(over[:, ::-1], axis=1)
+    rays = across_outline(coverage, image, span)
+    if rays is None:
+        return None
+    profiles, at, seen, offsets = rays.profiles, rays.at, rays.seen, rays.offsets
     ray = np.arange(RAYS)
-    after = np.minimum(last + 1, offsets.size - 1)
-    a, b = cover[ray, last], cover[ray, after]
-    at = last + np.clip(np.where(a > b, (a - 0.5) / np.maximum(a - b, 1e-6), 0.0), 0.0, 1.0)
 
     # The fall from rock to ground along each ray, per pixel, and its
     # steepest point within the reach, between samples (the vertex of the
@@ -156,7 +141,77 @@ def snapped(
     move = ndimage.median_filter(move, size=SMOOTH_RAYS, mode="wrap")
     if not np.any(np.abs(move) > 1e-3):
         return None
-    return _moved(coverage, inside, centre, outline - span + at * SPACING, move, span)
+    return _moved(rays.coverage, rays.inside, rays.centre, rays.edge, move, span)
+
+
+@dataclass(frozen=True)
+class Across:
+    """Profiles across a rock's outline, along ``RAYS`` rays from its centre
+    (:func:`across_outline`)."""
+
+    #: The rock's coverage (float32) and its region as 0/1 bytes.
+    coverage: NDArray[np.float32]
+    inside: NDArray[np.uint8]
+    #: The region's centre (row, col).
+    centre: tuple[float, float]
+    #: Each ray's outermost edge of the region, to a pixel (0: none).
+    outline: NDArray[np.float64]
+    #: Where the samples lie along each ray, from ``outline``, in pixels.
+    offsets: NDArray[np.float64]
+    #: The samples' columns and rows on the grid (rays, samples).
+    map_x: NDArray[np.float32]
+    map_y: NDArray[np.float32]
+    #: The image along each ray (rays, samples).
+    profiles: NDArray[np.float32]
+    #: Where the coverage falls through 0.5 for the last time on each ray
+    #: (sample units), and whether it does, on a ray that meets the rock.
+    at: NDArray[np.float64]
+    seen: NDArray[np.bool_]
+
+    @property
+    def edge(self) -> NDArray[np.float64]:
+        """The outline's last crossing on each ray, in pixels from the centre."""
+        return self.outline + self.offsets[0] + self.at * SPACING
+
+
+def across_outline(coverage: NDArray[np.floating], image: NDArray[np.float32], span: float) -> Across | None:
+    """The profiles of ``image`` across a rock's outline (its coverage's 0.5
+    level), ``span`` pixels either side of its outermost edge on each ray,
+    every ``SPACING``; None for an empty coverage."""
+    import cv2
+
+    coverage = np.ascontiguousarray(coverage, np.float32)
+    inside = (coverage >= 0.5).view(np.uint8)
+    moments = cv2.moments(inside, binaryImage=True)
+    if moments["m00"] < 1:
+        return None
+    centre = (moments["m01"] / moments["m00"], moments["m10"] / moments["m00"])
+    outline = _outermost(coverage, inside, centre)
+    offsets = np.arange(-span, span + SPACING / 2, SPACING)
+    angles = np.arange(RAYS) * (2.0 * math.pi / RAYS)
+    radii = np.maximum(outline[:, None] + offsets[None, :], 0.0)
+    map_x = (centre[1] + np.cos(angles)[:, None] * radii).astype(np.float32)
+    map_y = (centre[0] + np.sin(angles)[:, None] * radii).astype(np.float32)
+    cover = cv2.remap(coverage, map_x, map_y, cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT, borderValue=0)
+    profiles = cv2.remap(image, map_x, map_y, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
+    at, seen = last_crossing(cover)
+    return Across(
+        coverage, inside, centre, outline, offsets, map_x, map_y, profiles, at, seen & (outline > 0)
+    )
+
+
+def last_crossing(cover: NDArray[np.floating]) -> tuple[NDArray[np.float64], NDArray[np.bool_]]:
+    """Where each row of a coverage profile falls through 0.5 for the last
+    time, between samples (sample units), and whether it does: the row
+    reaches 0.5 somewhere and ends below it."""
+    over = cover >= 0.5
+    seen = over.any(axis=1) & ~over[:, -1]
+    last = cover.shape[1] - 1 - np.argmax(over[:, ::-1], axis=1)
+    ray = np.arange(cover.shape[0])
+    after = np.minimum(last + 1, cover.shape[1] - 1)
+    a, b = cover[ray, last], cover[ray, after]
+    at = last + np.clip(np.where(a > b, (a - 0.5) / np.maximum(a - b, 1e-6), 0.0), 0.0, 1.0)
+    return at, seen
 
 
 def _outermost(
