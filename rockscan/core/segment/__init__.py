@@ -285,6 +285,9 @@ def _offset_inputs(found: Segmentation, pixels: NDArray[np.generic]) -> _OnWindo
     and the rock's and the ground's levels with the ground's spread; None when
     the rock does not fit its window or is too small to measure."""
     rock = found.rocks[0]
+    # Read again, not taken over from the edge steps: the rim may have grown
+    # the rock, and its levels are read round the outline as it now is. It
+    # costs a millisecond or two, off the fast path only.
     window, gray = _rock_window(found, pixels)
     mask = _placed(rock, window, found.scale_rowcol)
     if mask is None:
