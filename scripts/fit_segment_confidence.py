@@ -5,8 +5,9 @@ On development photos of the segmentation benchmark that the choice model
 was never fitted on (by default photos 200-399 of each one-rock condition;
 the choice model's are 0-199, ``scripts/fit_segment_choice.py``), each photo
 is segmented as ``segment`` does it. Where the choice was made among the
-whole pool, the features of that choice (``confidence_features``) are kept
-beside whether the final outline is right (IoU >= 0.9 against the truth).
+whole pool, the features of that choice (``confidence_features``) and of
+the offset step (``offset_evidence``) are kept beside whether the final
+outline is right (IoU >= 0.9 against the truth).
 A logistic model with an L2 penalty (``--penalty``, on standardised
 features), each weight held to the direction ``confidence.SIGNS`` gives it,
 learns it; ``--write`` puts its weights into
@@ -46,16 +47,16 @@ CONDITIONS = [c for c, kind in scenes.CONDITION_KINDS.items() if kind != "all"]
 def _measure(task: tuple[str, int]) -> tuple[str, int, float, float, np.ndarray | None]:
     """Condition, index, the final outline's IoU, its score before, and the
     choice's confidence features (None when the whole pool did not decide)."""
-    from rockscan.core.segment import _chosen, _finished
+    from rockscan.core.segment import _chosen, _completed
     from rockscan.core.segment.types import SegmentConfig
 
     condition, index = task
     pixels, truth, _ = bench.photo("dev", condition, index)
     try:
-        found, features, easy = _chosen(pixels, SegmentConfig())
+        found, choice, easy = _chosen(pixels, SegmentConfig())
     except NoRockFoundError:
         return condition, index, 0.0, 0.0, None
-    final = _finished(found, pixels, full=not easy, offsets=features is not None)
+    final, features = _completed(found, choice, pixels, easy=easy)
     iou = bench.iou(bench.segmentation_labels(final, truth.shape) == 1, truth == 1)
     # Before: the choice model's largest probability, the first feature's log-odds.
     before = final.rocks[0].score if features is None else 1.0 / (1.0 + np.exp(-features[0]))

@@ -79,17 +79,17 @@ def truth_offsets(
 def _measure(task: tuple[str, int]) -> dict | None:
     """One development photo's rays: features, truth offsets and which rays count; None
     when no rock is found or the step would not run on it."""
-    from rockscan.core.segment import _finished, _main_rock, _offset_inputs
+    from rockscan.core.segment import _chosen, _finished, _offset_inputs
     from rockscan.core.segment.offset import offset_features
     from rockscan.core.segment.types import SegmentConfig
 
     condition, index = task
     pixels, truth, _ = bench.photo("dev", condition, index)
     try:
-        found, easy, pooled = _main_rock(pixels, SegmentConfig(), all_rocks=False)
+        found, choice, easy = _chosen(pixels, SegmentConfig())
     except NoRockFoundError:
         return None
-    if not pooled or found.channel == "alpha":
+    if choice is None or found.channel == "alpha":
         return None
     found = _finished(found, pixels, full=not easy)
     inputs = _offset_inputs(found, pixels)

@@ -9,14 +9,16 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from rockscan.core.segment import _chosen, confidence, segment
+from rockscan.core.segment import _chosen, _completed, confidence, segment
 from rockscan.core.segment.choose import FEATURES, Ranking
 from rockscan.core.segment.confidence import (
+    CHOICE_COUNT,
     CONFIDENCE_FEATURES,
     INTERCEPT,
     SIGNS,
     WEIGHTS,
     confidence_features,
+    offset_evidence,
     outline_confidence,
 )
 from rockscan.core.segment.types import SegmentConfig
@@ -42,13 +44,21 @@ def ranking() -> Ranking:
             [0.6, 0.7, 0.3, 1.0],
         ]
     )
-    features = np.arange(4 * len(FEATURES), dtype=np.float64).reshape(4, len(FEATURES))
+    # Values in [0, 1), as most of the features are shares.
+    features = np.arange(4 * len(FEATURES), dtype=np.float64).reshape(4, len(FEATURES)) / (4 * len(FEATURES))
     return Ranking(1, probabilities, features, ious)
+
+
+def scored(ranking: Ranking, detected_best: float, notch: float, before=None, after=None) -> np.ndarray:
+    """All of the score's features: the choice's, then the offset step's."""
+    return np.concatenate(
+        [confidence_features(ranking, detected_best, notch), offset_evidence(before, after)]
+    )
 
 
 def test_the_features_read_the_best_the_rival_and_the_agreeing_candidates():
     x = confidence_features(ranking(), detected_best=0.4, notch=0.05)
-    assert x.shape == (len(CONFIDENCE_FEATURES),)
+    assert x.shape == (CHOICE_COUNT,)
     col = {name: k for k, name in enumerate(CONFIDENCE_FEATURES)}
     assert x[col["logit_best"]] == pytest.approx(logit(0.6))
     # The rival: candidate 2, IoU 0.2 < 0.5 with the chosen one (3 lies in between).
@@ -65,8 +75,8 @@ def test_the_features_read_the_best_the_rival_and_the_agreeing_candidates():
 
 
 def test_an_outline_with_one_deeper_notch_is_never_surer():
-    x = confidence_features(ranking(), detected_best=0.4, notch=0.0)
-    notched = confidence_features(ranking(), detected_best=0.4, notch=0.2)
+    x = scored(ranking(), detected_best=0.4, notch=0.0)
+    notched = scored(ranking(), detected_best=0.4, notch=0.2)
     assert WEIGHTS[CONFIDENCE_FEATURES.index("notch")] <= 0
     assert outline_confidence(notched) <= outline_confidence(x)
 
@@ -79,8 +89,42 @@ def test_no_rival_counts_as_a_probability_near_zero():
     assert x[CONFIDENCE_FEATURES.index("agreeing")] == 4.0
 
 
+def test_the_offset_evidence_reads_what_the_trees_left_and_what_the_move_settled():
+    before, after = np.array([1.0, -2.0, 3.0]), np.array([0.5, -0.5, 1.0])
+    left, settled, out = offset_evidence(before, after)
+    # Still read on the final outline: (0.5 + 0.5 + 1) / 3; before, (1 + 2 + 3) / 3.
+    assert left == pytest.approx(2.0 / 3.0)
+    assert settled == pytest.approx(2.0 - 2.0 / 3.0)
+    # The mean signed offset went from 2/3 to 1/3: the outline moved out by 1/3.
+    assert out == pytest.approx(1.0 / 3.0)
+    assert [CONFIDENCE_FEATURES[k] for k in range(CHOICE_COUNT, len(CONFIDENCE_FEATURES))] == [
+        "offset_left",
+        "offset_settled",
+        "offset_out",
+    ]
+
+
+def test_an_outline_that_did_not_move_is_read_once_and_nothing_read_counts_as_nothing():
+    before = np.array([1.0, -2.0, 3.0])
+    np.testing.assert_allclose(offset_evidence(before, None), [2.0, 0.0, 0.0])
+    np.testing.assert_allclose(offset_evidence(before, before), [2.0, 0.0, 0.0])
+    np.testing.assert_array_equal(offset_evidence(None, None), [0.0, 0.0, 0.0])
+    np.testing.assert_array_equal(offset_evidence(np.array([]), np.array([])), [0.0, 0.0, 0.0])
+
+
+def test_an_outline_the_trees_would_still_move_is_never_surer():
+    x = scored(ranking(), 0.4, 0.05, before=np.full(8, 2.5), after=np.full(8, 0.2))
+    unsettled = scored(ranking(), 0.4, 0.05, before=np.full(8, 2.5), after=np.full(8, 1.5))
+    assert outline_confidence(unsettled) <= outline_confidence(x)
+
+
+def test_the_shipped_weights_keep_the_directions_the_fit_is_held_to():
+    for name, weight in zip(CONFIDENCE_FEATURES, WEIGHTS, strict=True):
+        assert weight * SIGNS[name] >= 0.0, name
+
+
 def test_the_score_is_a_probability_and_the_fit_reads_the_choice_as_expected():
-    x = confidence_features(ranking(), detected_best=0.4, notch=0.05)
+    x = scored(ranking(), detected_best=0.4, notch=0.05)
     assert 0.0 < outline_confidence(x) < 1.0
     assert outline_confidence(x) == pytest.approx(1.0 / (1.0 + math.exp(-(INTERCEPT + WEIGHTS @ x))))
     # A more probable choice is surer; a more probable rival object, less sure.
@@ -94,9 +138,13 @@ def test_the_score_is_a_probability_and_the_fit_reads_the_choice_as_expected():
 def test_a_rock_chosen_among_the_whole_pool_is_scored_by_the_fitted_model():
     # Development photo "shaded" 0 is decided by the whole pool.
     pixels, _, _ = bench_segment.photo("dev", "shaded", 0)
-    _, features, _ = _chosen(pixels, SegmentConfig())
-    assert features is not None
-    assert segment(pixels).rocks[0].score == pytest.approx(outline_confidence(features))
+    found, choice, easy = _chosen(pixels, SegmentConfig())
+    assert choice is not None
+    final, features = _completed(found, choice, pixels, easy=easy)
+    np.testing.assert_array_equal(features[:CHOICE_COUNT], choice)
+    rock = segment(pixels).rocks[0]
+    np.testing.assert_array_equal(rock.mask, final.rocks[0].mask)
+    assert rock.score == pytest.approx(outline_confidence(features))
 
 
 # ---------------------------------------------------------------- the fit (scripts/fit_segment_confidence.py)

@@ -198,5 +198,6 @@ def test_an_easy_photo_keeps_the_outline_the_fast_path_gave(monkeypatch):
     def never(*args, **kwargs):
         raise AssertionError("the offset step ran on the fast path")
 
-    monkeypatch.setattr(segmentation, "offset_moved", never)
+    monkeypatch.setattr(segmentation, "offsets_read", never)
+    monkeypatch.setattr(segmentation, "moved_by", never)
     segmentation.segment(pixels)

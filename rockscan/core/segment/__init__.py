@@ -103,8 +103,10 @@ Steps (see :func:`segment`):
    above all, which cost most, are not made. Unless the choice is sure, a
    candidate inside the chosen outline replaces it when the part it leaves
    out is a cast shadow darker than the rock (``shadow.shadow_left_out``).
-   A rock chosen among the whole pool is scored by how sure that choice is
-   over the photo (``rockscan.core.segment.confidence``).
+   A rock chosen among the whole pool is scored, once its outline is
+   final, by how sure that choice is over the photo and by how well the
+   offsets of step 12 agree with its outline
+   (``rockscan.core.segment.confidence``).
 8. **Pebbles and slivers off.** Round pieces that hang off the chosen outline
    at a neck (touching pebbles, which join every cue's region) are cut off
    along their contacts (``rockscan.core.segment.pebbles``); lobes all round
@@ -165,9 +167,9 @@ from rockscan.core._threads import one_blas_thread
 from rockscan.core.errors import NoRockFoundError, ParameterError
 from rockscan.core.segment.channels import _LUMA, _at_scale, _channels, _check_pixels, _pyramid, _unit
 from rockscan.core.segment.choose import choose_ranked, rank
-from rockscan.core.segment.confidence import confidence_features, outline_confidence
+from rockscan.core.segment.confidence import confidence_features, offset_evidence, outline_confidence
 from rockscan.core.segment.detect import _detect, _Detection, _luminance_polarity
-from rockscan.core.segment.offset import offset_moved
+from rockscan.core.segment.offset import OffsetsRead, moved_by, offsets_read
 from rockscan.core.segment.pebbles import lobed, pebbles_off
 from rockscan.core.segment.rim import rim_on
 from rockscan.core.segment.score import WEIGHTS, OutlineEvidence, outline_score
@@ -255,21 +257,51 @@ def segment(
     docstring.
     """
     config = config or SegmentConfig()
-    found, easy, pooled = _main_rock(pixels, config, all_rocks=all_rocks)
-    return found if all_rocks else _finished(found, pixels, full=not easy, offsets=pooled)
+    found, choice, easy = _chosen(pixels, config, all_rocks=all_rocks)
+    if all_rocks:
+        return found
+    found, features = _completed(found, choice, pixels, easy=easy)
+    if features is None:
+        return found
+    main = dataclasses.replace(found.rocks[0], score=outline_confidence(features))
+    return dataclasses.replace(found, rocks=(main, *found.rocks[1:]))
 
 
-def _finished(
-    found: Segmentation, pixels: NDArray[np.generic], *, full: bool = True, offsets: bool = False
-) -> Segmentation:
+def _completed(
+    found: Segmentation,
+    choice: NDArray[np.float64] | None,
+    pixels: NDArray[np.generic],
+    *,
+    easy: bool,
+) -> tuple[Segmentation, NDArray[np.float64] | None]:
+    """The chosen segmentation after steps 8-12 (``easy``: the fast path
+    took it), and for a rock chosen among the whole pool (``choice``, its
+    score's features from the choice) all of the score's features
+    (``confidence``), None otherwise."""
+    found = _finished(found, pixels, full=not easy)
+    if choice is None:
+        return found, None
+    inputs = None if found.channel == "alpha" else _offset_inputs(found, pixels)
+    read = None if inputs is None else offsets_read(*inputs[1:], _scale(found))
+    if read is None:
+        return found, np.concatenate([choice, offset_evidence(None, None)])
+    moved = _offset_moved(found, inputs[0], read)
+    if moved is None:
+        return found, np.concatenate([choice, offset_evidence(read.on_usable, None)])
+    inputs = _offset_inputs(moved, pixels)
+    after = None if inputs is None else offsets_read(*inputs[1:], _scale(moved))
+    return moved, np.concatenate(
+        [choice, offset_evidence(read.on_usable, None if after is None else after.on_usable)]
+    )
+
+
+def _finished(found: Segmentation, pixels: NDArray[np.generic], *, full: bool = True) -> Segmentation:
     """The main rock with touching pebbles and slivers cut off and its edges seen to
-    (steps 8-12): step 11 only with ``full`` (off the fast path), step 12 only
-    with ``offsets`` (a rock chosen among the whole pool of candidates); an
+    (steps 8-11), step 11 only with ``full`` (off the fast path); an
     outline an alpha channel gave stands as it is."""
     if found.channel == "alpha":
         return found
-    found = _edges(_slivers_off(_pebbles_off(found)), pixels, snap=full)
-    return _offset_moved(found, pixels) if offsets else found
+    return _edges(_slivers_off(_pebbles_off(found)), pixels, snap=full)
 
 
 #: A window (rows r0:r1, cols c0:c1), the log brightness and a rock's coverage
@@ -277,6 +309,11 @@ def _finished(
 _OnWindow = tuple[
     tuple[int, int, int, int], NDArray[np.float32], NDArray[np.float32], tuple[float, float, float]
 ]
+
+
+def _scale(found: Segmentation) -> float:
+    """Photo pixels per pixel of the working grid."""
+    return 0.5 * (found.scale_rowcol[0] + found.scale_rowcol[1])
 
 
 def _offset_inputs(found: Segmentation, pixels: NDArray[np.generic]) -> _OnWindow | None:
@@ -298,17 +335,14 @@ def _offset_inputs(found: Segmentation, pixels: NDArray[np.generic]) -> _OnWindo
     return window, gray, _main_coverage(rock, window, mask.shape), region[3]
 
 
-def _offset_moved(found: Segmentation, pixels: NDArray[np.generic]) -> Segmentation:
-    """The main rock with its outline moved by the learnt offsets
-    (``offset.offset_moved``); as it was when nothing moved. The rock keeps its score."""
-    inputs = _offset_inputs(found, pixels)
-    if inputs is None:
-        return found
-    window, gray, coverage, levels = inputs
-    scale = 0.5 * (found.scale_rowcol[0] + found.scale_rowcol[1])
-    moved = offset_moved(gray, coverage, levels, scale)
+def _offset_moved(
+    found: Segmentation, window: tuple[int, int, int, int], read: OffsetsRead
+) -> Segmentation | None:
+    """The main rock with its outline moved by the offsets read across it on
+    ``window`` (``offset.moved_by``); None when nothing moved."""
+    moved = moved_by(read)
     agreed = None if moved is None else _agreed(moved)
-    return found if agreed is None else _main_replaced(found, (window[0], window[2]), *agreed)
+    return None if agreed is None else _main_replaced(found, (window[0], window[2]), *agreed)
 
 
 def _agreed(moved: NDArray[np.float32]) -> tuple[NDArray[np.bool_], NDArray[np.float32]] | None:
@@ -325,24 +359,11 @@ def _agreed(moved: NDArray[np.float32]) -> tuple[NDArray[np.bool_], NDArray[np.f
     return kept, moved
 
 
-def _main_rock(
-    pixels: NDArray[np.generic], config: SegmentConfig, *, all_rocks: bool
-) -> tuple[Segmentation, bool, bool]:
-    """The fast path's segmentation, or the candidate the choice takes, scored by
-    how sure it is; whether it came by the fast path, and whether it was
-    chosen among the whole pool of candidates."""
-    found, features, easy = _chosen(pixels, config, all_rocks=all_rocks)
-    if features is None:
-        return found, easy, False
-    main = dataclasses.replace(found.rocks[0], score=outline_confidence(features))
-    return dataclasses.replace(found, rocks=(main, *found.rocks[1:])), easy, True
-
-
 def _chosen(
     pixels: NDArray[np.generic], config: SegmentConfig, *, all_rocks: bool = False
 ) -> tuple[Segmentation, NDArray[np.float64] | None, bool]:
     """The fast path's segmentation, or the candidate the choice takes; for a
-    choice among the whole pool, what its score is read from
+    choice among the whole pool, what its score reads of that choice
     (``confidence.confidence_features``; None otherwise, the score set); and
     whether the fast path took the photo.
     """
@@ -638,7 +659,7 @@ def _main_scored(found: Segmentation, probabilities: NDArray[np.float64]) -> Seg
     A main rock chosen among the detected candidates alone is scored so: the
     choice model's probability ranks right outlines above wrong ones better
     than the outline's own evidence. One chosen among the whole pool is
-    scored by ``confidence.outline_confidence`` (:func:`_main_rock`). An
+    scored by ``confidence.outline_confidence`` (:func:`segment`). An
     outline the fast path takes is supported all round and keeps its outline
     score (>= ``FAST_SCORE``, or less for a lobed rock's arms: see
     :func:`_fast_outline`).

@@ -23,7 +23,14 @@ choice saw, over the whole photo:
   largest's. Of two outlines the photo supports alike, one that took
   something in or left a bite out has one deep notch and is more often
   wrong; a star's arms leave alike gaps all round and a solid rock none,
-  so neither shape counts against its outline.
+  so neither shape counts against its outline;
+* what the offset step's trees (``rockscan.core.segment.offset``) read
+  across the outline before it moved and after: the mean distance they
+  still put between the final outline and the rock's edge, how much less
+  that is than before the move, and how far out the move took the outline
+  in their eyes (the mean signed offset before, less after). Trees that
+  agree with the outline they moved are evidence for it; an outline they
+  would still move is more often wrong.
 
 The weights are fitted (``scripts/fit_segment_confidence.py``) on
 development photos the choice model never saw, so that the score is the
@@ -40,7 +47,7 @@ from numpy.typing import NDArray
 from rockscan.core.segment.choose import FEATURES, MONOTONE, Ranking
 from rockscan.core.segment.stats import logistic, logit
 
-__all__ = ["CONFIDENCE_FEATURES", "SIGNS", "confidence_features", "outline_confidence"]
+__all__ = ["CONFIDENCE_FEATURES", "SIGNS", "confidence_features", "offset_evidence", "outline_confidence"]
 
 #: The chosen candidate's features the score reads: ``choose.FEATURES`` up to its channel.
 _OWN = FEATURES[: FEATURES.index("chromaticity") + 1]
@@ -55,7 +62,14 @@ CONFIDENCE_FEATURES = (
     "logit_detected_best",
     *(f"own_{name}" for name in _OWN),
     "notch",
+    "offset_left",
+    "offset_settled",
+    "offset_out",
 )
+
+#: How many of :data:`CONFIDENCE_FEATURES` the choice gives (:func:`confidence_features`);
+#: the rest are the offset step's (:func:`offset_evidence`).
+CHOICE_COUNT = len(CONFIDENCE_FEATURES) - 3
 
 #: The direction in which the score may move with each feature (+1: never
 #: down as it grows, -1: never up, 0: free): a surer choice, a less probable
@@ -70,6 +84,9 @@ SIGNS = {
     "logit_detected_best": 0,
     **{f"own_{name}": MONOTONE[name] for name in _OWN},
     "notch": -1,
+    "offset_left": -1,
+    "offset_settled": 1,
+    "offset_out": 0,
 }
 
 #: Overlap below which a candidate outlines another object than the chosen one,
@@ -82,34 +99,38 @@ AGREE_IOU = 0.8
 # BEGIN FITTED
 WEIGHTS = np.array(
     [
-        0.498942,  # logit_best
-        -0.0735086,  # logit_rival
-        0.160471,  # logit_agreeing
-        0.0557198,  # agreeing
-        -0.0824567,  # candidates
-        -0.0935413,  # logit_detected_best
+        0.740569,  # logit_best
+        -0.0660953,  # logit_rival
+        0.0571903,  # logit_agreeing
+        0.0556589,  # agreeing
+        -0.0604743,  # candidates
+        -0.157649,  # logit_detected_best
         0,  # own_logit_score
-        0,  # own_support
-        -0.976188,  # own_weak
+        1.82495,  # own_support
+        1.11746,  # own_weak
         0,  # own_outside
         0,  # own_noise
         0,  # own_frame
         0,  # own_log_detection
-        0,  # own_centre_distance
+        -1.2824,  # own_centre_distance
         0,  # own_covers_centre
-        0.373956,  # own_log_area
+        0.111291,  # own_log_area
         0,  # own_consensus
         0,  # own_pebbles
-        1.259,  # own_chromaticity
-        -30.4092,  # notch
+        1.5151,  # own_chromaticity
+        -36.2036,  # notch
+        -1.55341,  # offset_left
+        2.25162,  # offset_settled
+        1.58582,  # offset_out
     ]
 )
-INTERCEPT = 1.75193
+INTERCEPT = 0.499276
 # END FITTED
 
 
 def confidence_features(ranking: Ranking, detected_best: float, notch: float) -> NDArray[np.float64]:
-    """The score's features of a choice among the whole pool (module docstring).
+    """The score's features of a choice among the whole pool (module
+    docstring), up to the offset step's (:func:`offset_evidence`).
 
     Parameters
     ----------
@@ -122,7 +143,7 @@ def confidence_features(ranking: Ranking, detected_best: float, notch: float) ->
 
     Returns
     -------
-    features : (len(CONFIDENCE_FEATURES),) ndarray of float64
+    features : (CHOICE_COUNT,) ndarray of float64
     """
     p = np.asarray(ranking.probabilities, dtype=np.float64)
     overlap = np.asarray(ranking.ious[ranking.index], dtype=np.float64)
@@ -144,12 +165,40 @@ def confidence_features(ranking: Ranking, detected_best: float, notch: float) ->
     )
 
 
+def offset_evidence(
+    before: NDArray[np.floating] | None, after: NDArray[np.floating] | None
+) -> NDArray[np.float64]:
+    """The score's features of the offset step (module docstring).
+
+    Parameters
+    ----------
+    before, after : 1-D ndarray of float or None
+        The offsets the trees read on the rays across the outline before the
+        step moved it and after (``offset.OffsetsRead.on_usable``, pixels of
+        the grid); None where they could not be read. An outline that did
+        not move is read once, and given as both.
+
+    Returns
+    -------
+    evidence : (len(CONFIDENCE_FEATURES) - CHOICE_COUNT,) ndarray of float64
+        ``offset_left``, ``offset_settled``, ``offset_out``; all 0 where
+        nothing was read, and when only ``before`` was, it stands for ``after``.
+    """
+    if before is None or np.size(before) == 0:
+        return np.zeros(len(CONFIDENCE_FEATURES) - CHOICE_COUNT)
+    before = np.asarray(before, dtype=np.float64)
+    after = before if after is None or np.size(after) == 0 else np.asarray(after, dtype=np.float64)
+    left = float(np.mean(np.abs(after)))
+    return np.array([left, float(np.mean(np.abs(before))) - left, float(np.mean(before) - np.mean(after))])
+
+
 def outline_confidence(features: NDArray[np.float64]) -> float:
     """The probability, in [0, 1], that the chosen outline is right (IoU >= 0.9 with the rock).
 
     Parameters
     ----------
     features : (len(CONFIDENCE_FEATURES),) ndarray
-        :func:`confidence_features` of the choice.
+        :func:`confidence_features` of the choice followed by
+        :func:`offset_evidence` of the outline.
     """
     return logistic(float(INTERCEPT + WEIGHTS @ np.asarray(features, dtype=np.float64)))

@@ -46,7 +46,15 @@ from numpy.typing import NDArray
 from rockscan.core.segment.snap import RAYS, SPACING, Across, _moved, across_outline
 from rockscan.core.segment.trees import tree_sum, trees_of
 
-__all__ = ["OffsetRays", "offset_features", "offset_moved", "predicted_offsets"]
+__all__ = [
+    "OffsetRays",
+    "OffsetsRead",
+    "moved_by",
+    "offset_features",
+    "offset_moved",
+    "offsets_read",
+    "predicted_offsets",
+]
 
 #: The profiles run this far either side of the outline, in pixels of the
 #: grid (sampled every ``snap.SPACING`` along ``snap.RAYS`` rays).
@@ -156,15 +164,43 @@ def predicted_offsets(features: NDArray[np.floating]) -> NDArray[np.float64]:
     return tree_sum(features, trees_of(offset_model))
 
 
-def offset_moved(
+@dataclass(frozen=True)
+class OffsetsRead:
+    """What the trees read across a rock's outline (:func:`offsets_read`)."""
+
+    #: The rays across the outline and the model's features on them.
+    rays: OffsetRays
+    #: How far beyond the outline the model puts the rock's edge on each ray
+    #: (pixels of the grid; negative: inside).
+    predicted: NDArray[np.float64]
+
+    @property
+    def on_usable(self) -> NDArray[np.float64]:
+        """The predicted offsets of the rays that read a whole profile."""
+        return self.predicted[self.rays.usable]
+
+
+def offsets_read(
     gray: NDArray[np.floating],
     coverage: NDArray[np.floating],
     levels: tuple[float, float, float],
     scale: float,
-) -> NDArray[np.float32] | None:
-    """A rock's coverage with its outline moved by the learnt offsets (module docstring).
+) -> OffsetsRead | None:
+    """The trees' offsets on every ray across a rock's outline.
 
     Parameters are those of :func:`offset_features`.
+
+    Returns
+    -------
+    OffsetsRead or None
+        None for an empty coverage or a rock at its ground's level.
+    """
+    rays = offset_features(gray, coverage, levels, scale)
+    return None if rays is None else OffsetsRead(rays, predicted_offsets(rays.features))
+
+
+def moved_by(read: OffsetsRead) -> NDArray[np.float32] | None:
+    """The rock's coverage with its outline moved by the offsets read (module docstring).
 
     Returns
     -------
@@ -173,13 +209,31 @@ def offset_moved(
     """
     from scipy import ndimage
 
-    rays = offset_features(gray, coverage, levels, scale)
-    if rays is None:
-        return None
-    move = np.where(rays.usable, np.clip(predicted_offsets(rays.features), -REACH, REACH), 0.0)
+    rays = read.rays
+    move = np.where(rays.usable, np.clip(read.predicted, -REACH, REACH), 0.0)
     move *= np.clip((np.abs(move) - 0.5 * MIN_MOVE) / (0.5 * MIN_MOVE), 0.0, 1.0)
     move = ndimage.median_filter(move, size=SMOOTH_RAYS, mode="wrap")
     if not np.any(np.abs(move) > 1e-3):
         return None
     across = rays.across
     return _moved(across.coverage, across.inside, across.centre, across.edge, move, REACH + 2.0)
+
+
+def offset_moved(
+    gray: NDArray[np.floating],
+    coverage: NDArray[np.floating],
+    levels: tuple[float, float, float],
+    scale: float,
+) -> NDArray[np.float32] | None:
+    """A rock's coverage with its outline moved by the learnt offsets
+    (:func:`offsets_read`, then :func:`moved_by`).
+
+    Parameters are those of :func:`offset_features`.
+
+    Returns
+    -------
+    (rows, cols) ndarray of float32 or None
+        The coverage with its outline moved; None when nothing moved.
+    """
+    read = offsets_read(gray, coverage, levels, scale)
+    return None if read is None else moved_by(read)
