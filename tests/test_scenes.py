@@ -483,6 +483,32 @@ def test_score_auroc_counts_right_above_wrong_and_ignores_the_middle():
     assert bench.score_auroc(records, "heldout") == (0.75, 2, 2)
 
 
+def test_the_auroc_interval_holds_the_auroc_and_narrows_with_more_photos():
+    rng = np.random.default_rng(1)
+
+    def drawn(n: int) -> list[dict]:
+        # Right outlines score higher on average, with overlap.
+        right = rng.uniform(size=n) < 0.8
+        scores = np.clip(rng.normal(np.where(right, 0.7, 0.4), 0.2), 0.0, 1.0)
+        return [_record(float(s), 0.95 if r else 0.5) for s, r in zip(scores, right, strict=True)]
+
+    few, many = drawn(60), drawn(2000)
+    for records in (few, many):
+        auroc, _, _ = bench.score_auroc(records, "heldout")
+        low, high = bench.auroc_interval(records, "heldout")
+        assert low < auroc < high
+    few_width = np.subtract(*bench.auroc_interval(few, "heldout")[::-1])
+    many_width = np.subtract(*bench.auroc_interval(many, "heldout")[::-1])
+    assert many_width < few_width / 2
+    # Seeded: the same records give the same interval.
+    assert bench.auroc_interval(few, "heldout") == bench.auroc_interval(few, "heldout")
+
+
+def test_the_auroc_interval_is_nan_without_wrong_outlines():
+    low, high = bench.auroc_interval([_record(0.9, 0.95), _record(0.2, 0.99)], "heldout")
+    assert np.isnan(low) and np.isnan(high)
+
+
 def test_the_score_figure_is_a_png_and_none_without_scores(tmp_path):
     rng = np.random.default_rng(0)
     records = [_record(float(s), float(i)) for s, i in rng.uniform(size=(60, 2))]
