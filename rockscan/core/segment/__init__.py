@@ -281,18 +281,19 @@ def _completed(
     found = _finished(found, pixels, full=not easy)
     if choice is None:
         return found, None
+    before = _offsets_of(found, pixels)
+    moved = None if before is None else _offset_moved(found, before[0][0], before[1])
+    after = before if moved is None else _offsets_of(moved, pixels)
+    evidence = offset_evidence(*(None if r is None else r[1].on_usable for r in (before, after)))
+    return found if moved is None else moved, np.concatenate([choice, evidence])
+
+
+def _offsets_of(found: Segmentation, pixels: NDArray[np.generic]) -> tuple[_OnWindow, OffsetsRead] | None:
+    """What the offset step reads of the main rock (:func:`_offset_inputs`) and
+    the trees' offsets across its outline; None where they cannot be read."""
     inputs = None if found.channel == "alpha" else _offset_inputs(found, pixels)
     read = None if inputs is None else offsets_read(*inputs[1:], _scale(found))
-    if read is None:
-        return found, np.concatenate([choice, offset_evidence(None, None)])
-    moved = _offset_moved(found, inputs[0], read)
-    if moved is None:
-        return found, np.concatenate([choice, offset_evidence(read.on_usable, None)])
-    inputs = _offset_inputs(moved, pixels)
-    after = None if inputs is None else offsets_read(*inputs[1:], _scale(moved))
-    return moved, np.concatenate(
-        [choice, offset_evidence(read.on_usable, None if after is None else after.on_usable)]
-    )
+    return None if read is None else (inputs, read)
 
 
 def _finished(found: Segmentation, pixels: NDArray[np.generic], *, full: bool = True) -> Segmentation:
