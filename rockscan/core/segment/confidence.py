@@ -47,7 +47,14 @@ from numpy.typing import NDArray
 from rockscan.core.segment.choose import FEATURES, MONOTONE, Ranking
 from rockscan.core.segment.stats import logistic, logit
 
-__all__ = ["CONFIDENCE_FEATURES", "SIGNS", "confidence_features", "offset_evidence", "outline_confidence"]
+__all__ = [
+    "CHOICE_COUNT",
+    "CONFIDENCE_FEATURES",
+    "SIGNS",
+    "confidence_features",
+    "offset_evidence",
+    "outline_confidence",
+]
 
 #: The chosen candidate's features the score reads: ``choose.FEATURES`` up to its channel.
 _OWN = FEATURES[: FEATURES.index("chromaticity") + 1]

@@ -202,6 +202,11 @@ def offsets_read(
 def moved_by(read: OffsetsRead) -> NDArray[np.float32] | None:
     """The rock's coverage with its outline moved by the offsets read (module docstring).
 
+    Parameters
+    ----------
+    read : OffsetsRead
+        The trees' offsets across the outline (:func:`offsets_read`).
+
     Returns
     -------
     (rows, cols) ndarray of float32 or None
