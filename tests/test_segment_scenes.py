@@ -107,6 +107,17 @@ def test_dark_rocks_touching_along_dark_seams_are_parted():
     assert crowd.matched >= 10, crowd
 
 
+@pytest.mark.parametrize("index", [8, 76])
+def test_rocks_that_touch_round_a_pocket_of_ground_are_parted(index):
+    # Development scenes 8 and 76: dark rocks on a lighter ground, in groups
+    # of three round a pocket of ground. Outlined together, the pocket filled
+    # in, 23 of 29 and 31 of 36 rocks were matched one to one until outlines
+    # much larger than the median were cut round their pockets: every rock.
+    crowd = judged("crowded", index)
+    assert crowd.matched == crowd.n_true == crowd.n_found, crowd
+    assert crowd.merges == 0, crowd
+
+
 def test_specks_are_judged_against_the_largest_rock_not_the_largest_cluster():
     # Development scene 23: 14 light rocks on a brick wall, two clusters of
     # them touching. Specks were dropped against the largest detected region,

@@ -20,9 +20,11 @@ from rockscan.core.outline import trace_outline
 from rockscan.core.segment import CONFIDENT_SCORE, segment
 from rockscan.core.segment.score import outline_evidence, outline_score
 from rockscan.core.segment.split import (
+    pockets,
     rejoined,
     split_colours,
     split_necks,
+    split_pockets,
     split_rocks,
     split_seams,
     territories,
@@ -650,3 +652,62 @@ def test_all_rocks_takes_the_polarity_of_the_rocks_that_together_stand_out_most(
     assert seg.n_rocks == 12
     # One rock alone still follows its own polarity.
     assert segment(photo_of([(dark, 0.1)], shape=shape, ground=0.5), all_rocks=True).polarity == "dark"
+
+
+# ---------------------------------------------------------------- pockets of ground between rocks
+
+
+def _ring_of_domes(radius=30):
+    """Four domes, each overlapping the next (centres 1.9 radii apart), round a
+    pocket of ground; their outline with the pocket filled; and the pocket."""
+    shape = (200, 200)
+    d = 0.95 * radius
+    centers = [(100 + sy * d, 100 + sx * d) for sy, sx in ((-1, -1), (-1, 1), (1, 1), (1, -1))]
+    masks, height = _domes(shape, centers, radius)
+    ring = np.logical_or.reduce(masks)
+    yy, xx = np.mgrid[: shape[0], : shape[1]]
+    pocket = ~ring & ((yy - 100) ** 2 + (xx - 100) ** 2 < radius**2)
+    return masks, height, ring | pocket, pocket
+
+
+@pytest.mark.parametrize(("rock", "ground"), [(0.3, 0.6), (0.8, 0.3)])
+def test_split_pockets_cuts_rocks_that_touch_round_a_pocket_of_ground(rock, ground):
+    # Filled in, the outline of the four is one blob with no neck: only the
+    # pocket, of the ground's level, tells them apart.
+    masks, height, whole, pocket = _ring_of_domes()
+    image = _dome_photo(whole.shape, height, rock, ground)
+    found = pockets(whole, image)
+    # Most of the pocket, and little else: the darkened rims where a light
+    # rock meets the pocket may count.
+    assert (found & pocket).sum() >= 0.75 * pocket.sum()
+    assert (found & ~pocket).sum() <= 0.1 * found.sum()
+    assert len(split_necks(whole, 50)) == 1
+    parts = split_pockets(whole, image)
+    assert len(parts) == 4
+    assert np.array_equal(np.logical_or.reduce(parts), whole)
+    for part in parts:
+        assert max((part & m).sum() / (part | m).sum() for m in masks) > 0.9
+
+
+def test_split_pockets_keeps_a_rock_with_a_spot_of_the_grounds_level_whole():
+    # A spot of the ground's level inside one rock is a pocket when large
+    # enough, but a ring has no neck: the rock stays whole. A speck is no
+    # pocket at all.
+    shape = (160, 160)
+    yy, xx = np.mgrid[: shape[0], : shape[1]]
+    (disc,), height = _domes(shape, [(80, 80)], 60)
+    for radius, is_pocket in ((10, True), (2, False)):
+        image = _dome_photo(shape, height, 0.3, 0.6)
+        image[(yy - 80) ** 2 + (xx - 80) ** 2 <= radius**2] = 0.6
+        assert pockets(disc, image).any() == is_pocket
+        assert len(split_pockets(disc, image)) == 1
+    assert not pockets(disc, _dome_photo(shape, height, 0.3, 0.6)).any()
+
+
+@settings(max_examples=20, deadline=None)
+@given(st.integers(0, 2**16), st.floats(0.0, 0.05))
+def test_split_pockets_parts_cover_the_outline_once(seed, noise):
+    _, height, whole, _ = _ring_of_domes()
+    parts = split_pockets(whole, _dome_photo(whole.shape, height, 0.35, 0.6, noise=noise, seed=seed))
+    total = np.sum([p.astype(int) for p in parts], axis=0)
+    assert np.array_equal(total, whole.astype(int))

@@ -68,6 +68,10 @@ Steps (see :func:`segment`):
    them (``split.split_colours``): touching rocks of different hues. An
    outline that is not convex and has a dark seam across it from end to end
    is cut along it (``split.split_seams``): touching rocks of one colour.
+   Before those, an outline of at least ``POCKET_LARGE`` times the median
+   outline's area that encloses pockets of the ground's colour is cut at
+   its necks round them (``split.split_pockets``): rocks that touch round a
+   patch of ground.
 6. **Outline.** In a window around each rock, at working size, after a
    ``smooth_sigma`` Gaussian, the rock's level is the median inside the
    detected region (less a margin) and the ground's the median of a ring
@@ -186,6 +190,7 @@ from rockscan.core.segment.split import (
     split_blobs,
     split_colours,
     split_necks,
+    split_pockets,
     split_seams,
     territories,
 )
@@ -1015,39 +1020,68 @@ def _where_free(rock: RockMask, taken: NDArray[np.bool_]) -> RockMask | None:
 
 
 def _parted(found: Segmentation, work: NDArray[np.generic], dtype: np.dtype) -> Segmentation:
-    """Every outlined rock that is several compact blobs (``split.split_blobs``),
-    several rocks of clearly different colours (``split.split_colours``; colour
-    photos), or several rocks with dark seams between them (``split.split_seams``),
-    cut into them.
+    """Every outlined rock that is several rocks round pockets of ground
+    (``split.split_pockets``; outlines of at least ``POCKET_LARGE`` times the
+    median's area), several compact blobs (``split.split_blobs``), several
+    rocks of clearly different colours (``split.split_colours``; colour
+    photos), or several rocks with dark seams between them
+    (``split.split_seams``), cut into them.
 
     A part keeps the coverage of its territory within the rock's window and
     the score of the outline it was cut from.
     """
+    large = POCKET_LARGE * float(np.median([rock.area for rock in found.rocks])) if found.rocks else 0.0
     rocks = []
     for rock in found.rocks:
-        # Every cue leaves a convex outline whole: most rocks need no window of the photo.
-        if solidity(rock.mask) >= CONVEX_CELL:
-            rocks.append(rock)
-            continue
-        parts = split_blobs(rock.mask)
-        r0, c0 = rock.origin_rowcol
-        h, w = rock.mask.shape
-        window = work[r0 : r0 + h, c0 : c0 + w]
-        window = _unit(np.ascontiguousarray(window[..., :3] if window.ndim == 3 else window), dtype)
-        if work.ndim == 3:
-            parts = [piece for part in parts for piece in split_colours(part, window)]
-        gray = window @ _LUMA if window.ndim == 3 else window
-        parts = [piece for part in parts for piece in split_seams(part, gray)]
-        if len(parts) == 1:
-            rocks.append(rock)
-            continue
-        owners = territories(parts)
-        for index, part in enumerate(parts, start=1):
-            coverage = (rock.coverage * (owners == index)).astype(np.float32)
-            rocks.append(dataclasses.replace(rock, mask=part, coverage=coverage))
+        pieces = [rock]
+        if len(found.rocks) > 1 and rock.area >= large:
+            pieces = _pieces(rock, split_pockets(rock.mask, _work_window(work, rock, dtype)))
+        for piece in pieces:
+            rocks.extend(_cut(piece, work, dtype))
     if len(rocks) == len(found.rocks):
         return found
     return _assemble(rocks, found.labels.shape, found.scale_rowcol, found.polarity, found.channel)
+
+
+#: An outline at least this many times the median outline's area (with
+#: ``--all``) is looked at for pockets of ground: it may be a cluster of
+#: rocks. Chosen on the development crowded scenes 0-199 (rocks one to one,
+#: of 4,366, at a pocket level of 0.25: 90.9% from 1.5 times the median,
+#: 90.8% from 2 and from 2.5).
+POCKET_LARGE = 2.0
+
+
+def _cut(rock: RockMask, work: NDArray[np.generic], dtype: np.dtype) -> list[RockMask]:
+    """The rock cut by the cues of blobs, colours and seams (:func:`_parted`), or ``[rock]``."""
+    # Every cue leaves a convex outline whole: most rocks need no window of the photo.
+    if solidity(rock.mask) >= CONVEX_CELL:
+        return [rock]
+    parts = split_blobs(rock.mask)
+    window = _work_window(work, rock, dtype)
+    if work.ndim == 3:
+        parts = [piece for part in parts for piece in split_colours(part, window)]
+    gray = window @ _LUMA if window.ndim == 3 else window
+    parts = [piece for part in parts for piece in split_seams(part, gray)]
+    return _pieces(rock, parts)
+
+
+def _work_window(work: NDArray[np.generic], rock: RockMask, dtype: np.dtype) -> NDArray[np.float32]:
+    """The working image under a rock's window, in [0, 1] (colour or brightness)."""
+    r0, c0 = rock.origin_rowcol
+    h, w = rock.mask.shape
+    window = work[r0 : r0 + h, c0 : c0 + w]
+    return _unit(np.ascontiguousarray(window[..., :3] if window.ndim == 3 else window), dtype)
+
+
+def _pieces(rock: RockMask, parts: list[NDArray[np.bool_]]) -> list[RockMask]:
+    """The rock's parts as rocks, each with the coverage of its territory; ``[rock]`` for one part."""
+    if len(parts) == 1:
+        return [rock]
+    owners = territories(parts)
+    return [
+        dataclasses.replace(rock, mask=part, coverage=(rock.coverage * (owners == index)).astype(np.float32))
+        for index, part in enumerate(parts, start=1)
+    ]
 
 
 def _assemble(
