@@ -412,9 +412,9 @@ def split_seams(mask: NDArray[np.bool_], gray: NDArray[np.float32]) -> list[NDAr
 _SEAM_LEAST_AREA = 200
 
 
-#: A pixel of a pocket lies within this share of the distance from the
-#: ground's colour to the rock's of the ground's colour (both medians: of a
-#: ring just outside the outline, and of its core). Chosen on the
+#: A pixel belongs to a pocket when its colour lies within this share of the
+#: rock-to-ground distance from the ground's colour (both colours medians: of
+#: a ring just outside the outline, and of its core). Chosen on the
 #: development crowded scenes 0-199 (rocks one to one, of 4,366, and scenes
 #: counted exactly, of 200: 89.2% and 56 without pockets; 90.8% and 55 at
 #: 0.25, 91.0% and 56 at 0.3, 91.3% and 58 at 0.35, 91.2% and 58 at 0.4,
