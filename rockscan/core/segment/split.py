@@ -192,15 +192,21 @@ def split_blobs(mask: NDArray[np.bool_]) -> list[NDArray[np.bool_]]:
     list of (rows, cols) ndarray of bool
         The blobs, or ``[mask]``.
     """
-    area = int(np.count_nonzero(mask))
-    if area < 50 or solidity(mask) >= BLOB_SOLIDITY:
+    if np.count_nonzero(mask) < 50 or solidity(mask) >= BLOB_SOLIDITY:
         return [mask]
+    owners = _blob_territories(mask)
+    if owners is None:
+        return [mask]
+    return [mask & (owners == i) for i in range(1, int(owners.max()) + 1)]
+
+
+def _blob_territories(mask: NDArray[np.bool_]) -> NDArray[np.int32] | None:
+    """The territories (:func:`territories`) of the blobs :func:`split_blobs`
+    cuts ``mask`` into, or None when it is one blob."""
+    area = int(np.count_nonzero(mask))
     parts = split_necks(mask, BLOB_SMALL_SHARE * area, neck_share=BLOB_NECK_SHARE, cut_share=BLOB_CUT_SHARE)
     parts = [p for p in parts if np.count_nonzero(p) >= BLOB_MIN_SHARE * area or _round(p)]
-    if len(parts) < 2:
-        return [mask]
-    owners = territories(parts)
-    return [mask & (owners == i) for i in range(1, len(parts) + 1)]
+    return territories(parts) if len(parts) >= 2 else None
 
 
 def _round(part: NDArray[np.bool_]) -> bool:
@@ -503,14 +509,11 @@ def split_pockets(mask: NDArray[np.bool_], image: NDArray[np.float32]) -> list[N
     pocket = pockets(mask, image)
     if not pocket.any():
         return [mask]
-    holed = mask & ~pocket
-    area = int(np.count_nonzero(holed))
-    parts = split_necks(holed, BLOB_SMALL_SHARE * area, neck_share=BLOB_NECK_SHARE, cut_share=BLOB_CUT_SHARE)
-    parts = [p for p in parts if np.count_nonzero(p) >= BLOB_MIN_SHARE * area or _round(p)]
-    if len(parts) < 2:
+    owners = _blob_territories(mask & ~pocket)
+    if owners is None:
         return [mask]
-    owners = territories(parts)
-    return [_filled(np.pad(mask & (owners == i), 1), math.inf)[1:-1, 1:-1] for i in range(1, len(parts) + 1)]
+    parts = (mask & (owners == i) for i in range(1, int(owners.max()) + 1))
+    return [_filled(np.pad(part, 1), math.inf)[1:-1, 1:-1] for part in parts]
 
 
 def _reaches(part: NDArray[np.bool_], band: NDArray[np.bool_]) -> bool:
