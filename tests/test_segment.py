@@ -212,6 +212,21 @@ def test_rendered_rocks_are_segmented_with_iou_at_least_095(case, seed):
     np.testing.assert_allclose(rocks[0].outline.centroid_rowcol, (cy, cx), atol=1.5)
 
 
+@pytest.mark.parametrize("seed", [0, 1, 7])
+def test_a_rendered_dark_rock_keeps_the_fast_path(seed):
+    # Lit from above with no cast shadow, a dark rendered rock has at most a
+    # few grains of ground lighter than the ground's level beside it; its
+    # first outline is final, as the speed benchmark's photo (seed 7) needs.
+    from rockscan.core.segment import LIT_BESIDE, _candidate_pool
+    from rockscan.core.segment.types import Segmentation
+
+    name = "rounded-triangle"
+    photo = render_photo(SPECS[name], RenderConfig(rows=480, cols=640), rng=seed, name=name)
+    found = _candidate_pool(photo.pixels, SegmentConfig())
+    assert isinstance(found, Segmentation)
+    assert found.polarity == "dark" and found.rocks[0].darker_outside < LIT_BESIDE / 2
+
+
 @pytest.mark.parametrize("name", ["five-armed-star", "six-pointed-star"])
 def test_a_rendered_star_takes_the_fast_path(name):
     # A star's outline scores under FAST_SCORE for its arms (solidity), not

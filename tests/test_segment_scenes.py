@@ -187,6 +187,26 @@ def test_a_light_rock_with_dark_beside_its_first_outline_takes_no_fast_path():
     assert score.iou >= 0.95, round(score.iou, 3)
 
 
+def test_a_dark_rock_taken_with_its_cast_shadow_takes_no_fast_path():
+    # Development photo "shaded" 556: a dark rock under a low light. Its
+    # shaded side joined to its cast shadow is one dark region whose far edge
+    # steps against the lit ground as crisply as a rock's, and its first
+    # outline scores above FAST_SCORE at IoU 0.49. The rock's lit face,
+    # lighter than the ground, lies beside that outline: the other candidates
+    # are judged, and the choice takes the rock without its shadow.
+    from rockscan.core.segment import FAST_SCORE, LIT_BESIDE, _candidate_pool
+    from rockscan.core.segment.types import Segmentation, SegmentConfig
+
+    pixels, _, _ = bench_segment.photo("dev", "shaded", 556)
+    first = _candidate_pool(pixels, SegmentConfig(), fast=False).candidates[0][0]
+    rock = first.rocks[0]
+    assert first.polarity == "dark" and first.channel == "luminance"
+    assert rock.score >= FAST_SCORE and rock.darker_outside >= LIT_BESIDE
+    assert not isinstance(_candidate_pool(pixels, SegmentConfig()), Segmentation)
+    score = judged("shaded", 556)
+    assert score.iou >= 0.95, round(score.iou, 3)
+
+
 def test_a_real_coin_with_nothing_dark_beside_it_keeps_the_fast_path():
     # Flat, lit from above, a coin of coins() has no shaded rim: its first
     # outline is final, as for the light rocks rendered from the default library.
