@@ -216,7 +216,8 @@ def test_rendered_rocks_are_segmented_with_iou_at_least_095(case, seed):
 def test_a_rendered_dark_rock_keeps_the_fast_path(seed):
     # Lit from above with no cast shadow, a dark rendered rock has at most a
     # few grains of ground lighter than the ground's level beside it; its
-    # first outline is final, as the speed benchmark's photo (seed 7) needs.
+    # first outline is final, as the speed benchmark's photo of the same
+    # shape (seed 7, 768x1024) needs it to be.
     from rockscan.core.segment import LIT_BESIDE, _candidate_pool
     from rockscan.core.segment.types import Segmentation
 
