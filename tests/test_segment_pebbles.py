@@ -41,6 +41,20 @@ def test_a_pebble_pressed_against_a_rock_is_cut_off_along_its_contact():
     assert iou(kept, rock) > 0.98
 
 
+def test_a_pebble_pressed_broadly_against_a_rock_is_cut_off_at_the_notches_beside_it():
+    from rockscan.core.segment.pebbles import CUT_SHARE, _pieces
+
+    rock = disk(100, 120, 50)
+    # Sunk 0.3 of its diameter into the rock: what the opening takes off meets
+    # the body along a contact too broad for the neck rule alone.
+    pebble = disk(100, 120 + 50 + 16 * 0.3, 16)
+    joined = rock | pebble
+    found = _pieces(joined, CUT_SHARE, by_distance=True)
+    assert found is not None and not found.round_necked.any() and found.round_broad.sum() == 1
+    assert iou(joined, rock) < 0.94
+    assert iou(pebbles_off(joined), rock) > 0.98
+
+
 def test_several_pebbles_on_one_side_are_all_cut_off():
     rock = disk(100, 120, 50)
     joined = rock.copy()

@@ -160,6 +160,15 @@ def test_pebbles_pressed_against_the_rock_are_cut_off_its_outline(index):
     assert score.iou >= 0.94, round(score.iou, 3)
 
 
+def test_a_pebble_pressed_broadly_against_the_rock_is_cut_off_at_its_notches():
+    # Development photo 684 of touching pebbles: a pebble meets the rock along
+    # a contact too broad for the neck rule (NECK), and the outline held it
+    # (IoU 0.896) until a round piece with a notch of the outline beside it
+    # was cut as well (0.939).
+    score = judged("touching-pebbles", 684)
+    assert score.iou >= 0.92, round(score.iou, 3)
+
+
 @pytest.mark.parametrize(("condition", "index"), [("plain", 17), ("shaded", 6)])
 def test_a_cast_shadow_that_joined_a_dark_rock_is_cut_off_its_outline(condition, index):
     # Development photos of a dark rock beside its cast shadow, darker than

@@ -11,7 +11,10 @@ contact with the body). The tips of a star are neither: they taper, and are
 widest where they join. Lobes of the rock's own shape (a lobed star, a
 Superformula of high symmetry) are round and necked too, but they come as
 several pieces of much the same size all round the body; pebbles touch a
-rock where they happen to lie.
+rock where they happen to lie. A pebble pressed hard against a rock meets it
+along a contact nearly as wide as itself, with no neck; the outline still
+turns in at a wedge on either side of it, where the tip of a teardrop runs
+on along a gently hollow flank.
 
 Two uses:
 
@@ -43,6 +46,18 @@ ROUNDNESS = 0.6
 #: is widest where it joins the body (measured: 0.24-0.38 for the tips of
 #: rendered stars, mostly 0.45-1.3 for generated touching pebbles).
 NECK = 0.45
+#: :func:`pebbles_off` also cuts a round piece necked down to this share when
+#: the region's outline turns in sharply beside it: a notch at least ``NOTCH``
+#: of the piece's inscribed radius deep, whose sides, followed along the
+#: outline for two such radii, meet at ``WEDGE`` degrees or less. A pebble
+#: pressed against a rock meets it along a contact nearly as wide as itself,
+#: at a wedge (73-135 degrees for the pebbles of development photos 680-799
+#: in this band); the tip of a teardrop is as broad at its base, and the
+#: outline runs into it along a gently hollow flank (157-173 degrees for the
+#: default library's, drawn at radii of 30-60 pixels).
+CUT_NECK = 0.35
+NOTCH = 1.0
+WEDGE = 145.0
 #: At least this many round pieces, the largest at most ``LOBES_ALIKE``
 #: times the smallest, are lobes of the rock's own shape.
 LOBES = 3
@@ -70,6 +85,9 @@ class _Pieces:
     opened: Pieces
     size: NDArray[np.float64]
     round_necked: NDArray[np.bool_]
+    #: Of the round pieces, those necked down to ``CUT_NECK`` only.
+    round_broad: NDArray[np.bool_]
+    inscribed: NDArray[np.float64]
 
 
 def _pieces(mask: NDArray[np.bool_], share: float, *, by_distance: bool = False) -> _Pieces | None:
@@ -89,13 +107,55 @@ def _pieces(mask: NDArray[np.bool_], share: float, *, by_distance: bool = False)
     rim = cv2.dilate(body.astype(np.uint8), np.ones((3, 3), np.uint8)).astype(bool)
     contact = np.maximum(np.bincount(labels[rim], minlength=count), 1)
     size = stats[:, cv2.CC_STAT_AREA].astype(np.float64)
-    round_necked = (
-        (size >= max(4.0, 0.005 * float(np.count_nonzero(region))))
-        & (inscribed >= ROUNDNESS * np.sqrt(size / math.pi))
-        & (2.0 * inscribed >= NECK * contact)
+    rounded = (size >= max(4.0, 0.005 * float(np.count_nonzero(region)))) & (
+        inscribed >= ROUNDNESS * np.sqrt(size / math.pi)
     )
-    round_necked[0] = False
-    return _Pieces(found, size, round_necked)
+    rounded[0] = False
+    round_necked = rounded & (2.0 * inscribed >= NECK * contact)
+    round_broad = rounded & ~round_necked & (2.0 * inscribed >= CUT_NECK * contact)
+    return _Pieces(found, size, round_necked, round_broad, inscribed.astype(np.float64))
+
+
+def _notched(found: _Pieces) -> NDArray[np.bool_]:
+    """Which of the broad round pieces have a notch of the region's outline beside
+    them: a convexity defect within half their inscribed radius, at least
+    ``NOTCH`` of that radius deep, a wedge of at most ``WEDGE`` degrees."""
+    import cv2
+
+    notched = np.zeros_like(found.round_broad)
+    if not found.round_broad.any():
+        return notched
+    region = found.opened.region.astype(np.uint8)
+    contours, _ = cv2.findContours(region, cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_NONE)
+    contour = max(contours, key=cv2.contourArea)
+    try:
+        defects = cv2.convexityDefects(contour, cv2.convexHull(contour, returnPoints=False))
+    except cv2.error:  # a self-touching outline has no well-defined hull order
+        return notched
+    if defects is None:
+        return notched
+    defects = defects.reshape(-1, 4)
+    outline = contour.reshape(-1, 2)
+    deepest = outline[defects[:, 2]]
+    depths = defects[:, 3] / 256.0
+    labels = found.opened.labels
+    for k in np.flatnonzero(found.round_broad):
+        radius = max(float(found.inscribed[k]), 1.0)
+        away = cv2.distanceTransform((labels != k).astype(np.uint8), cv2.DIST_L2, 5)
+        near = (away[deepest[:, 1], deepest[:, 0]] <= 1.0 + 0.5 * radius) & (depths >= NOTCH * radius)
+        notched[k] = any(_wedge(outline, int(at), radius) <= WEDGE for at in defects[near, 2])
+    return notched
+
+
+def _wedge(outline: NDArray[np.int32], at: int, radius: float) -> float:
+    """The angle, in degrees, at point ``at`` of a closed outline between the
+    points two ``radius`` along it on either side."""
+    step = max(round(2.0 * radius), 2)
+    here = outline[at].astype(np.float64)
+    before = outline[(at - step) % len(outline)] - here
+    after = outline[(at + step) % len(outline)] - here
+    cosine = float(before @ after) / max(float(np.linalg.norm(before) * np.linalg.norm(after)), 1e-9)
+    return math.degrees(math.acos(min(max(cosine, -1.0), 1.0)))
 
 
 def pebble_share(mask: NDArray[np.bool_]) -> float:
@@ -133,7 +193,8 @@ def pebbles_off(mask: NDArray[np.bool_]) -> NDArray[np.bool_]:
 
     Pieces an opening by a disk of ``CUT_SHARE`` of the region's equivalent
     radius takes off are pebbles when they are round and meet the body at a
-    neck (module docstring). When ``LOBES`` or more pieces of much the same
+    neck, or at a broader contact with a notch of the outline beside them
+    (module docstring; ``CUT_NECK``, ``NOTCH``, ``WEDGE``). When ``LOBES`` or more pieces of much the same
     size as the pebbles lie all round the body (their directions from its
     centre average to a resultant under ``LOBES_SPREAD``), they are the
     rock's own lobes and nothing is cut. Only the pebbles' pixels go: the
@@ -152,14 +213,17 @@ def pebbles_off(mask: NDArray[np.bool_]) -> NDArray[np.bool_]:
     """
 
     found = _pieces(mask, CUT_SHARE, by_distance=True)
-    if found is None or not found.round_necked.any():
+    if found is None:
+        return mask
+    pebbles = found.round_necked | _notched(found)
+    if not pebbles.any():
         return mask
     # Any piece of much the pebbles' size counts towards lobes, round or not:
     # the arms of a star are cut off as several pieces, only some of them round.
-    alike = _alike(found, float(np.median(found.size[found.round_necked])))
+    alike = _alike(found, float(np.median(found.size[pebbles])))
     if alike.size >= LOBES and _all_round(found, alike):
         return mask
-    return cut_back(mask, found.opened.box, found.round_necked[found.opened.labels])
+    return cut_back(mask, found.opened.box, pebbles[found.opened.labels])
 
 
 def lobed(mask: NDArray[np.bool_]) -> bool:
