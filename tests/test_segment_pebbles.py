@@ -55,6 +55,19 @@ def test_a_pebble_pressed_broadly_against_a_rock_is_cut_off_at_the_notches_besid
     assert iou(pebbles_off(joined), rock) > 0.98
 
 
+@pytest.mark.parametrize(("arm", "angle"), [(10, 90.0), (10, 180.0), (6, 45.0)])
+def test_the_wedge_is_the_angle_between_the_outline_two_radii_either_side(arm, angle):
+    from rockscan.core.segment.pebbles import _wedge
+
+    # Two straight arms of an outline meeting at the point at index ``arm``.
+    t = np.arange(arm + 1)[::-1]
+    first = np.column_stack([t, np.zeros_like(t)])
+    a = np.radians(angle)
+    second = np.column_stack([np.round(t[::-1][1:] * np.cos(a)), np.round(t[::-1][1:] * np.sin(a))])
+    outline = np.vstack([first, second]).astype(np.int32)
+    assert _wedge(outline, arm, arm / 2) == pytest.approx(angle, abs=1.0)
+
+
 def test_several_pebbles_on_one_side_are_all_cut_off():
     rock = disk(100, 120, 50)
     joined = rock.copy()
@@ -142,7 +155,9 @@ def test_the_default_librarys_shapes_are_left_alone():
     theta = np.linspace(0, 2 * np.pi, 720, endpoint=False)
     for spec in read_spec(default_spec_path()):
         radii = shape_radii(spec.params, 720)
-        for size in (40, 90):
+        # 40 and 60: the teardrop's tip, broad at its base between hollow
+        # flanks, is the case the notch's angle (WEDGE) keeps.
+        for size in (40, 60, 90):
             r = radii / radii.max() * size
             outline = np.column_stack([100 + r * np.sin(theta), 120 + r * np.cos(theta)])
             mask = polygon2mask(SHAPE, outline)

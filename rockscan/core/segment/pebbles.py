@@ -194,7 +194,8 @@ def pebbles_off(mask: NDArray[np.bool_]) -> NDArray[np.bool_]:
     Pieces an opening by a disk of ``CUT_SHARE`` of the region's equivalent
     radius takes off are pebbles when they are round and meet the body at a
     neck, or at a broader contact with a notch of the outline beside them
-    (module docstring; ``CUT_NECK``, ``NOTCH``, ``WEDGE``). When ``LOBES`` or more pieces of much the same
+    (module docstring; ``CUT_NECK``, ``NOTCH``, ``WEDGE``). When ``LOBES``
+    or more pieces of much the same
     size as the pebbles lie all round the body (their directions from its
     centre average to a resultant under ``LOBES_SPREAD``), they are the
     rock's own lobes and nothing is cut. Only the pebbles' pixels go: the
