@@ -47,7 +47,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 import bench_segment as bench
 import fitting
 import scenes
-from fitting import array_source, measured, set_cache, signed_logistic, tree_arrays
+from fitting import measured, set_cache, signed_logistic, tree_arrays
 
 from rockscan.core.errors import NoRockFoundError
 from rockscan.core.segment import FAST_PROBABILITY
@@ -109,44 +109,24 @@ def hits(features: list[np.ndarray], ious: list[np.ndarray], rank) -> np.ndarray
 
 def fit_trees(features: list[np.ndarray], ious: list[np.ndarray], args, seed: int = 0):
     """The gradient-boosted trees of the choice, fitted with scikit-learn."""
-    from sklearn.ensemble import HistGradientBoostingClassifier
-
     from rockscan.core.segment.choose import FEATURES
 
     x = np.vstack(features)
     y = np.concatenate(ious) >= 0.9
     monotone = [0 if args.free else SIGNS[name] for name in FEATURES]
-    model = HistGradientBoostingClassifier(
-        max_iter=args.trees,
-        max_depth=args.depth,
-        learning_rate=args.rate,
-        l2_regularization=1.0,
-        min_samples_leaf=20,
-        monotonic_cst=monotone,
-        early_stopping=False,
-        random_state=seed,
-    )
-    return model.fit(x, y)
+    return fitting.boosted_classifier(args, monotone, seed).fit(x, y)
 
 
 def write_model(arrays: dict, detected_arrays: dict, path: Path, summary: str) -> None:
     """Write both models' trees as a module of numpy arrays (``choice_model``): the whole
     pool's, and those of the detected candidates alone under the prefix ``DETECTED_``."""
-    header = (
-        '"""The choice model\'s trees (``choose.choice_probabilities``), written by\n'
-        "``scripts/fit_segment_choice.py --write``: not to be edited by hand.\n\n"
-        f"{summary}\n"
-        '"""\n\nimport numpy as np\n'
+    fitting.write_trees(
+        path,
+        "The choice model's trees (``choose.choice_probabilities``)",
+        "scripts/fit_segment_choice.py",
+        summary,
+        {"": arrays, "DETECTED_": detected_arrays},
     )
-    parts = [header]
-    for prefix, trees in (("", arrays), ("DETECTED_", detected_arrays)):
-        parts += [f"{prefix}BIAS = {trees['BIAS']!r}\n", f"{prefix}DEPTH = {trees['DEPTH']}\n"]
-        parts += [
-            array_source(prefix + name, trees[name], "int64")
-            for name in ("ROOTS", "FEATURE", "LEFT", "RIGHT")
-        ]
-        parts += [array_source(prefix + name, trees[name], "float64") for name in ("THRESHOLD", "VALUE")]
-    path.write_text("\n".join(parts))
 
 
 def _measured(args) -> list:

@@ -42,7 +42,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 import bench_segment as bench
 import fitting
 import scenes
-from fitting import array_source, measured, tree_arrays
+from fitting import measured, tree_arrays
 
 from rockscan.core.errors import NoRockFoundError
 
@@ -140,16 +140,13 @@ def summary_row(name: str, target: np.ndarray, predicted: np.ndarray, least: flo
 
 def write_model(arrays: dict, path: Path, summary: str) -> None:
     """Write the trees as a module of numpy arrays (``offset_model``)."""
-    header = (
-        '"""The offset model\'s trees (``offset.predicted_offsets``), written by\n'
-        "``scripts/fit_segment_offset.py --write``: not to be edited by hand.\n\n"
-        f"{summary}\n"
-        '"""\n\nimport numpy as np\n'
+    fitting.write_trees(
+        path,
+        "The offset model's trees (``offset.predicted_offsets``)",
+        "scripts/fit_segment_offset.py",
+        summary,
+        {"": arrays},
     )
-    parts = [header, f"BIAS = {arrays['BIAS']!r}\n", f"DEPTH = {arrays['DEPTH']}\n"]
-    parts += [array_source(name, arrays[name], "int64") for name in ("ROOTS", "FEATURE", "LEFT", "RIGHT")]
-    parts += [array_source(name, arrays[name], "float64") for name in ("THRESHOLD", "VALUE")]
-    path.write_text("\n".join(parts))
 
 
 def main() -> None:

@@ -112,8 +112,28 @@ def signed_logistic(
     return w[1:] / sd, float(w[0] - np.sum(w[1:] * mu / sd))
 
 
+def boosted_classifier(args: argparse.Namespace, monotone: Sequence[int], seed: int = 0):
+    """Gradient-boosted trees of a yes-or-no answer (scikit-learn's
+    ``HistGradientBoostingClassifier``), unfitted: ``args.trees`` rounds of depth
+    ``args.depth`` at rate ``args.rate``, each feature held to its sign in
+    ``monotone`` (+1 rising, -1 falling, 0 free)."""
+    from sklearn.ensemble import HistGradientBoostingClassifier
+
+    return HistGradientBoostingClassifier(
+        max_iter=args.trees,
+        max_depth=args.depth,
+        learning_rate=args.rate,
+        l2_regularization=1.0,
+        min_samples_leaf=20,
+        monotonic_cst=list(monotone),
+        early_stopping=False,
+        random_state=seed,
+    )
+
+
 def tree_arrays(model) -> dict[str, np.ndarray | float | int]:
-    """The fitted trees as flat node arrays (``choice_model``, ``offset_model``): a leaf's feature is -1."""
+    """The fitted trees as flat node arrays (``choice_model``, ``offset_model``,
+    ``join_model``): a leaf's feature is -1."""
     nodes = [predictor.nodes for (predictor,) in model._predictors]
     sizes = np.array([len(n) for n in nodes])
     roots = np.concatenate([[0], np.cumsum(sizes)[:-1]])
@@ -130,6 +150,31 @@ def tree_arrays(model) -> dict[str, np.ndarray | float | int]:
         "BIAS": float(np.ravel(model._baseline_prediction)[0]),
         "DEPTH": int(flat["depth"].max()),
     }
+
+
+def write_trees(path: Path, title: str, script: str, summary: str, trees: dict[str, dict]) -> None:
+    """Write fitted trees (:func:`tree_arrays`) as a module of numpy arrays.
+
+    ``trees`` maps a prefix of the module's names (``""`` for the first
+    model) to that model's arrays; ``title`` names the model and what reads
+    it, ``script`` the script that writes it, and ``summary`` (how it was
+    fitted and what it measured) goes into the module's docstring.
+    """
+    header = (
+        f'"""{title}, written by\n'
+        f"``{script} --write``: not to be edited by hand.\n\n"
+        f"{summary}\n"
+        '"""\n\nimport numpy as np\n'
+    )
+    parts = [header]
+    for prefix, arrays in trees.items():
+        parts += [f"{prefix}BIAS = {arrays['BIAS']!r}\n", f"{prefix}DEPTH = {arrays['DEPTH']}\n"]
+        parts += [
+            array_source(prefix + name, arrays[name], "int64")
+            for name in ("ROOTS", "FEATURE", "LEFT", "RIGHT")
+        ]
+        parts += [array_source(prefix + name, arrays[name], "float64") for name in ("THRESHOLD", "VALUE")]
+    path.write_text("\n".join(parts))
 
 
 def array_source(name: str, values: np.ndarray, kind: str) -> str:

@@ -57,3 +57,35 @@ def test_the_last_task_always_reports(total):
     stream = io.StringIO()
     list(fitting._reported(iter(range(total)), total, stream))
     assert stream.getvalue().splitlines()[-1].split()[1] == f"{total}/{total}"
+
+
+def test_written_trees_read_back_as_the_same_sums(tmp_path):
+    import importlib.util
+
+    import numpy as np
+
+    from rockscan.core.segment.trees import tree_sum, trees_of
+
+    # Two stumps: x0 <= 0.5 -> -1 else 2; x1 <= -3 -> 0.25 else -0.5; bias 0.1.
+    stumps = {
+        "ROOTS": np.array([0, 3]),
+        "FEATURE": np.array([0, -1, -1, 1, -1, -1]),
+        "LEFT": np.array([1, 0, 0, 4, 0, 0]),
+        "RIGHT": np.array([2, 0, 0, 5, 0, 0]),
+        "THRESHOLD": np.array([0.5, 0.0, 0.0, -3.0, 0.0, 0.0]),
+        "VALUE": np.array([0.0, -1.0, 2.0, 0.0, 0.25, -0.5]),
+        "BIAS": 0.1,
+        "DEPTH": 1,
+    }
+    path = tmp_path / "stump_model.py"
+    fitting.write_trees(
+        path, "Two stumps", "scripts/none.py", "Fitted on nothing.", {"": stumps, "B_": stumps}
+    )
+    spec = importlib.util.spec_from_file_location("stump_model", path)
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    assert "Fitted on nothing." in module.__doc__
+    x = np.array([[0.0, -4.0], [1.0, 0.0], [0.5, -3.0]])
+    expected = [0.1 - 1.0 + 0.25, 0.1 + 2.0 - 0.5, 0.1 - 1.0 + 0.25]
+    for prefix in ("", "B_"):
+        assert tree_sum(x, trees_of(module, prefix)).tolist() == pytest.approx(expected, abs=1e-15)
