@@ -71,7 +71,10 @@ Steps (see :func:`segment`):
    Before those, an outline of at least ``POCKET_LARGE`` times the median
    outline's area that encloses pockets of the ground's colour is cut at
    its necks round them (``split.split_pockets``): rocks that touch round a
-   patch of ground.
+   patch of ground. Last, touching regions that are likely pieces of one
+   rock (a textured skin broken along its veins) are joined again, the most
+   probable pair first (``rockscan.core.segment.join``), and each joined
+   rock is scored on its whole outline.
 6. **Outline.** In a window around each rock, at working size, after a
    ``smooth_sigma`` Gaussian, the rock's level is the median inside the
    detected region (less a margin) and the ground's the median of a ring
@@ -171,6 +174,7 @@ from numpy.typing import NDArray
 
 from rockscan.core._threads import one_blas_thread
 from rockscan.core.errors import NoRockFoundError, ParameterError
+from rockscan.core.segment import join
 from rockscan.core.segment.channels import _LUMA, _at_scale, _channels, _check_pixels, _pyramid, _unit
 from rockscan.core.segment.choose import choose_ranked, rank
 from rockscan.core.segment.confidence import confidence_features, offset_evidence, outline_confidence
@@ -919,6 +923,15 @@ class _Outliner:
         self.works[id(found)] = (work, up, detection)
         return found
 
+    def to_detect(
+        self, shape: tuple[int, int], up: tuple[float, float]
+    ) -> tuple[NDArray[np.int64], NDArray[np.int64]]:
+        """The detection image's row of each working row, and column of each working column."""
+        return tuple(
+            np.minimum(((np.arange(n) + 0.5) / u).astype(np.int64), m - 1)
+            for n, u, m in zip(shape, up, self.small_shape, strict=True)
+        )
+
     def refined(self, found: Segmentation) -> Iterator[tuple[str, Segmentation]]:
         """Other outlines of a found main rock, each with its source (``choose.SOURCES``):
         GrabCut from it and from most of the frame, the Otsu part and the watershed
@@ -926,12 +939,7 @@ class _Outliner:
         outlines with touching pebbles opened off."""
         work, up, detection = self.works[id(found)]
         rock = found.rocks[0]
-        to_row = np.minimum(
-            ((np.arange(work.shape[0]) + 0.5) / up[0]).astype(np.int64), self.small_shape[0] - 1
-        )
-        to_col = np.minimum(
-            ((np.arange(work.shape[1]) + 0.5) / up[1]).astype(np.int64), self.small_shape[1] - 1
-        )
+        to_row, to_col = self.to_detect(work.shape[:2], up)
         gradient = _colour_gradient(work, self.dtype)
         core = _core_basin(gradient, rock)
         masks = [
@@ -1011,9 +1019,59 @@ def _rocks_of_every_channel(
     if len(kept) >= MEDIAN_LEAST:
         median = float(np.median([r.area for r in kept]))
         kept = [r for r in kept if r.area >= config.min_median_area * median]
+    kept = _pieces_joined(kept, outline, found[0])
     if len(kept) == len(rocks) == len(first.rocks):
         return first
     return _assemble(kept, first.labels.shape, first.scale_rowcol, first.polarity, first.channel)
+
+
+def _pieces_joined(rocks: list[RockMask], outline: _Outliner, found: Segmentation) -> list[RockMask]:
+    """The rocks with pieces of one rock joined (``rockscan.core.segment.join``),
+    each joined rock scored anew on its whole outline."""
+    if len(rocks) < 2:
+        return rocks
+    work, up, detection = outline.works[id(found)]
+    labels = _assemble(rocks, work.shape[:2], found.scale_rowcol, found.polarity, found.channel).labels
+    ordered = sorted(rocks, key=lambda r: -r.area)  # _assemble's label order
+    unit = _unit(np.ascontiguousarray(work[..., :3] if work.ndim == 3 else work), outline.dtype)
+    gray = unit @ _LUMA if unit.ndim == 3 else unit
+    owner = join.joined(labels, gray)
+    if np.array_equal(owner, np.arange(owner.size)):
+        return rocks
+    to_detect = outline.to_detect(work.shape[:2], up)
+    out = []
+    for head in np.unique(owner[1:]):
+        group = [ordered[k - 1] for k in np.flatnonzero(owner == head)]
+        if len(group) == 1:
+            out.append(group[0])
+            continue
+        rock = _cropped(_union(group, work.shape[:2]))
+        out.append(_scored(work, outline.dtype, rock, to_detect, up, detection, outline.config))
+    return out
+
+
+def _union(rocks: list[RockMask], shape: tuple[int, int]) -> RockMask:
+    """Touching rocks as one: their masks joined and holes filled, the coverage
+    of each kept at the outer edge and full along the contacts between them."""
+    import cv2
+
+    r0 = min(r.origin_rowcol[0] for r in rocks)
+    c0 = min(r.origin_rowcol[1] for r in rocks)
+    r1 = max(r.origin_rowcol[0] + r.mask.shape[0] for r in rocks)
+    c1 = max(r.origin_rowcol[1] + r.mask.shape[1] for r in rocks)
+    # A pixel of margin round the window, so that the filled mask's edge can be eroded.
+    r0, c0, r1, c1 = max(r0 - 1, 0), max(c0 - 1, 0), min(r1 + 1, shape[0]), min(c1 + 1, shape[1])
+    mask = np.zeros((r1 - r0, c1 - c0), bool)
+    coverage = np.zeros(mask.shape, np.float32)
+    for rock in rocks:
+        o0, o1 = rock.origin_rowcol[0] - r0, rock.origin_rowcol[1] - c0
+        h, w = rock.mask.shape
+        mask[o0 : o0 + h, o1 : o1 + w] |= rock.mask
+        np.maximum(coverage[o0 : o0 + h, o1 : o1 + w], rock.coverage, out=coverage[o0 : o0 + h, o1 : o1 + w])
+    mask = _fill_holes(mask)
+    inner = cv2.erode(mask.astype(np.uint8), np.ones((3, 3), np.uint8)) > 0
+    coverage[inner] = 1.0
+    return RockMask(mask=mask, coverage=coverage, origin_rowcol=(r0, c0))
 
 
 #: Fewest rocks whose median area ``SegmentConfig.min_median_area`` is judged against.

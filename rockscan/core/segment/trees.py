@@ -1,9 +1,9 @@
 """Gradient-boosted regression trees kept as flat node arrays, and their sum.
 
 The fitting scripts (``scripts/fit_segment_choice.py``,
-``scripts/fit_segment_offset.py``) write scikit-learn's trees as modules of
-numpy arrays (``choice_model``, ``offset_model``); rockscan reads them with
-numpy alone.
+``scripts/fit_segment_offset.py``, ``scripts/fit_segment_join.py``) write
+scikit-learn's trees as modules of numpy arrays (``choice_model``,
+``offset_model``, ``join_model``); rockscan reads them with numpy alone.
 """
 
 from __future__ import annotations
