@@ -48,13 +48,6 @@ MONOTONE = {"union": -1, "smaller": -1, "contact": 1}
 PROBABILITIES = (0.4, 0.5, 0.6, 0.7, 0.8)
 
 
-def _truth_on(labels: np.ndarray, truth: np.ndarray, scale_rowcol: tuple[float, float]) -> np.ndarray:
-    """The true label under each working pixel's centre."""
-    rows = np.minimum(((np.arange(labels.shape[0]) + 0.5) * scale_rowcol[0]).astype(int), truth.shape[0] - 1)
-    cols = np.minimum(((np.arange(labels.shape[1]) + 0.5) * scale_rowcol[1]).astype(int), truth.shape[1] - 1)
-    return truth[np.ix_(rows, cols)]
-
-
 def pair_labels(labels: np.ndarray, truth_work: np.ndarray, pairs: np.ndarray) -> np.ndarray:
     """1 for a pair on one true rock, 0 for two, -1 for a pair left out."""
     table = bench.overlap_table(labels, bench._dense(truth_work)).astype(np.float64)
@@ -92,7 +85,7 @@ def _measure(scene: int) -> dict | None:
         return None
     labels, gray = seen["labels"], seen["gray"]
     pairs, features = join.pair_features(labels, gray)
-    truth_work = _truth_on(labels, truth, seg.scale_rowcol)
+    truth_work = fitting.truth_on_grid(labels.shape, truth, seg.scale_rowcol)
     return {
         "scene": scene,
         "pairs": pairs,

@@ -131,6 +131,14 @@ def boosted_classifier(args: argparse.Namespace, monotone: Sequence[int], seed: 
     )
 
 
+def truth_on_grid(shape: tuple[int, int], truth: np.ndarray, scale_rowcol: tuple[float, float]) -> np.ndarray:
+    """The true label under the centre of each pixel of a grid of ``shape``
+    whose pixels span ``scale_rowcol`` photo pixels (a segmentation's working grid)."""
+    rows = np.minimum(((np.arange(shape[0]) + 0.5) * scale_rowcol[0]).astype(int), truth.shape[0] - 1)
+    cols = np.minimum(((np.arange(shape[1]) + 0.5) * scale_rowcol[1]).astype(int), truth.shape[1] - 1)
+    return truth[np.ix_(rows, cols)]
+
+
 def tree_arrays(model) -> dict[str, np.ndarray | float | int]:
     """The fitted trees as flat node arrays (``choice_model``, ``offset_model``,
     ``join_model``): a leaf's feature is -1."""
