@@ -29,6 +29,7 @@ from rockscan.core.segment.split import (
     split_seams,
     territories,
 )
+from rockscan.core.segment.stats import touching_pairs
 from rockscan.run.pipeline import classify_image, measure_rocks
 
 # ---------------------------------------------------------------- touching rocks
@@ -111,6 +112,44 @@ def test_two_pieces_of_one_disc_are_rejoined_and_two_touching_discs_are_not():
     # Apart, the pieces of the disc stay apart: only touching parts are joined.
     gap = disc & (yy < 30)
     assert len(rejoined([gap, bottom])) == 2
+
+
+def test_a_thin_piece_between_its_rock_and_a_neighbour_is_rejoined_to_its_rock():
+    # Labels in list order: a strip a pixel thick (1) lies along the whole of the
+    # neighbour (3) above it and along the rest of its square (2) below. A
+    # maximum filter over the labels saw only each strip pixel's higher
+    # neighbour, 3, and the strip was never joined to the rest of its square.
+    yy, xx = np.mgrid[:100, :80]
+    square = (yy >= 40) & (yy < 80) & (xx >= 20) & (xx <= 60)
+    strip, rest = square & (yy == 40), square & (yy > 40)
+    neighbour = (yy >= 20) & (yy < 40) & ~((yy < 31) & (xx >= 35) & (xx <= 45))
+    parts = rejoined([strip, rest, neighbour])
+    assert len(parts) == 2
+    assert np.array_equal(parts[0], square) and np.array_equal(parts[1], neighbour)
+
+
+def test_touching_pairs_are_every_pair_of_8_neighbours_once():
+    labels = np.zeros((6, 5), np.int32)
+    labels[1, :], labels[2, :], labels[3:5, :] = 3, 1, 2
+    labels[5, 4] = 4  # touches 2 across a corner only
+    assert touching_pairs(labels).tolist() == [[1, 2], [1, 3], [2, 4]]
+
+
+@settings(max_examples=40, deadline=None)
+@given(st.lists(st.integers(0, 4), min_size=30, max_size=30))
+def test_touching_pairs_agree_with_a_walk_over_every_pixel(values):
+    labels = np.array(values).reshape(5, 6)
+    expected = set()
+    for r in range(5):
+        for c in range(6):
+            for dr in (-1, 0, 1):
+                for dc in (-1, 0, 1):
+                    rr, cc = r + dr, c + dc
+                    if 0 <= rr < 5 and 0 <= cc < 6:
+                        a, b = labels[r, c], labels[rr, cc]
+                        if a > 0 and b > 0 and a != b:
+                            expected.add((min(a, b), max(a, b)))
+    assert [tuple(p) for p in touching_pairs(labels).tolist()] == sorted(expected)
 
 
 @settings(max_examples=30, deadline=None)

@@ -37,7 +37,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from rockscan.core.segment import join_model
-from rockscan.core.segment.stats import solidity
+from rockscan.core.segment.stats import solidity, touching_pairs
 from rockscan.core.segment.trees import tree_sum, trees_of
 
 __all__ = ["FEATURES", "JOIN_PROBABILITY", "join_probabilities", "joined", "pair_features"]
@@ -81,7 +81,7 @@ def pair_features(
     labels = np.asarray(labels)
     gray = np.asarray(gray, dtype=np.float64)
     scene = _Scene.of(labels, gray)
-    pairs = _touching(labels)
+    pairs = touching_pairs(labels)
     features = np.array([scene.features([a], [b]) for a, b in pairs], dtype=np.float64)
     return pairs, features.reshape(len(pairs), len(FEATURES))
 
@@ -122,7 +122,7 @@ def joined(
         return owner
     scene = _Scene.of(labels, gray)
     members: dict[int, list[int]] = {k: [k] for k in range(1, count + 1)}
-    pairs = {(int(a), int(b)) for a, b in _touching(labels)}
+    pairs = {(int(a), int(b)) for a, b in touching_pairs(labels)}
     pairs = sorted(pairs)
     first = join_probabilities(np.array([scene.features([a], [b]) for a, b in pairs]))
     measured = dict(zip(pairs, first.tolist(), strict=True))
@@ -144,25 +144,6 @@ def joined(
 
 def _probability(features: list[float]) -> float:
     return float(join_probabilities(np.array([features]))[0])
-
-
-def _touching(labels: NDArray[np.integer]) -> NDArray[np.int64]:
-    """Pairs ``a < b`` of labels that touch (8-connected), in order."""
-    labels = labels.astype(np.int64)
-    base = int(labels.max()) + 1 if labels.size else 1
-    keys = []
-    # Every pair of 8-neighbours once: right, down, down-right and down-left.
-    for here, there in (
-        (labels[:, :-1], labels[:, 1:]),
-        (labels[:-1, :], labels[1:, :]),
-        (labels[:-1, :-1], labels[1:, 1:]),
-        (labels[:-1, 1:], labels[1:, :-1]),
-    ):
-        meet = (here > 0) & (there > 0) & (here != there)
-        lo, hi = np.minimum(here[meet], there[meet]), np.maximum(here[meet], there[meet])
-        keys.append(lo * base + hi)
-    keys = np.unique(np.concatenate(keys))
-    return np.stack(np.divmod(keys, base), axis=1).astype(np.int64).reshape(-1, 2)
 
 
 class _Scene:

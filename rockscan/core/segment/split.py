@@ -44,7 +44,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-from rockscan.core.segment.stats import bounding_box, label_maxima, solidity
+from rockscan.core.segment.stats import bounding_box, label_maxima, solidity, touching_pairs
 
 __all__ = [
     "label_image",
@@ -690,24 +690,14 @@ def rejoined(parts: list[NDArray[np.bool_]], convex: float = CONVEX_CELL) -> lis
     list of (rows, cols) ndarray of bool
         The parts, those joined in place of the first of each pair.
     """
-    import cv2
-
     parts = list(parts)
     # Each part's token names it while it lasts, so that a pair's solidity is
     # measured once, not again after every join elsewhere.
     tokens = list(range(len(parts)))
     solidities: dict[tuple[int, int], float] = {}
     while len(parts) > 1:
-        # A part touches another where its 3 x 3 neighbourhood holds the other's
-        # label (float32 holds every label up to 2**24 exactly).
-        labels = label_image(parts).astype(np.float32)
-        grown = cv2.dilate(labels, np.ones((3, 3), np.uint8))
-        touch = (labels > 0) & (grown > 0) & (grown != labels)
-        lo = np.minimum(labels[touch], grown[touch]).astype(np.int64)
-        hi = np.maximum(labels[touch], grown[touch]).astype(np.int64)
         best = None
-        for key in np.unique(lo * (len(parts) + 1) + hi):
-            a, b = divmod(int(key), len(parts) + 1)
+        for a, b in touching_pairs(label_image(parts)).tolist():
             pair = (tokens[a - 1], tokens[b - 1])
             if pair not in solidities:
                 union = parts[a - 1] | parts[b - 1]

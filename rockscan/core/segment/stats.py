@@ -7,7 +7,16 @@ import math
 import numpy as np
 from numpy.typing import NDArray
 
-__all__ = ["bounding_box", "label_maxima", "logistic", "logit", "notch", "robust_spread", "solidity"]
+__all__ = [
+    "bounding_box",
+    "label_maxima",
+    "logistic",
+    "logit",
+    "notch",
+    "robust_spread",
+    "solidity",
+    "touching_pairs",
+]
 
 #: The median absolute deviation of a normal distribution times this is its standard deviation.
 MAD_TO_SIGMA = 1.4826
@@ -112,6 +121,37 @@ def notch(mask: NDArray[np.bool_] | NDArray[np.uint8]) -> float:
         return 0.0
     second = gaps[1] if gaps.size > 1 else 0
     return float(gaps[0] - second) / float(max(np.count_nonzero(hull), 1))
+
+
+def touching_pairs(labels: NDArray[np.integer]) -> NDArray[np.int64]:
+    """Pairs of labels that touch, 8-connected, each once.
+
+    Parameters
+    ----------
+    labels : (rows, cols) ndarray of int
+        0 for ground, positive labels for regions.
+
+    Returns
+    -------
+    (n_pairs, 2) ndarray of int64
+        Labels ``a < b`` of the pairs, in increasing order.
+    """
+    labels = np.asarray(labels).astype(np.int64)
+    base = int(labels.max()) + 1 if labels.size else 1
+    keys = []
+    # Every pair of 8-neighbours once: right, down, down-right and down-left. A
+    # maximum filter would miss a pixel's lower neighbour beside a higher one.
+    for here, there in (
+        (labels[:, :-1], labels[:, 1:]),
+        (labels[:-1, :], labels[1:, :]),
+        (labels[:-1, :-1], labels[1:, 1:]),
+        (labels[:-1, 1:], labels[1:, :-1]),
+    ):
+        meet = (here > 0) & (there > 0) & (here != there)
+        lo, hi = np.minimum(here[meet], there[meet]), np.maximum(here[meet], there[meet])
+        keys.append(lo * base + hi)
+    keys = np.unique(np.concatenate(keys))
+    return np.stack(np.divmod(keys, base), axis=1).astype(np.int64).reshape(-1, 2)
 
 
 def _hull(mask: NDArray[np.bool_] | NDArray[np.uint8]) -> tuple[NDArray[np.uint8], NDArray[np.int32] | None]:
