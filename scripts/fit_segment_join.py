@@ -15,8 +15,9 @@ a pair is less likely one rock the larger it is and more likely the longer
 its contact: ``MONOTONE``) learn the probability of one rock. Printed: the
 AUROC under two-fold cross-validation (scenes split in halves), and on the
 check scenes, with the trees fitted on all the fitting scenes, the counts
-of the benchmark (exact counts, rocks one to one, merges, splits) without
-joining and at several least probabilities. ``--write`` puts the trees into
+of the benchmark (exact counts, rocks one to one, merges, splits) of the
+regions the join sees (before regions much smaller than the median are
+dropped), without joining and at several least probabilities. ``--write`` puts the trees into
 ``rockscan/core/segment/join_model.py``, which evaluates them with numpy
 alone (checked here against scikit-learn's own predictions).
 
@@ -114,8 +115,9 @@ def _stack(records: list[dict]) -> tuple[np.ndarray, np.ndarray]:
 def counted(records: list[dict], probability: float | None) -> str:
     """The benchmark's counts of the check scenes, joined at ``probability`` (None: not joined).
 
-    Counted on the working grid against the truth sampled there; the
-    benchmark counts at photo resolution."""
+    Counted on the working grid against the truth sampled there, before
+    specks are dropped; the benchmark counts the final regions at photo
+    resolution."""
     from rockscan.core.segment import join
 
     scores = []
@@ -176,7 +178,8 @@ def main() -> None:
         f"{len(y_all)} touching pairs, {int(y_all.sum())} of one rock.",
         f"Two-fold cross-validated AUROC {roc_auc_score(y, p):.3f}.",
         "",
-        f"Check scenes 0-{args.check - 1} (counted on the working grid):",
+        f"Check scenes 0-{args.check - 1} (the regions the join sees, before specks are dropped;",
+        "counted on the working grid):",
         "",
         "| join | exact counts | one to one | merges | splits |",
         "|---|---|---|---|---|",

@@ -71,10 +71,11 @@ Steps (see :func:`segment`):
    Before those, an outline of at least ``POCKET_LARGE`` times the median
    outline's area that encloses pockets of the ground's colour is cut at
    its necks round them (``split.split_pockets``): rocks that touch round a
-   patch of ground. Last, touching regions that are likely pieces of one
-   rock (a textured skin broken along its veins) are joined again, the most
-   probable pair first (``rockscan.core.segment.join``), and each joined
-   rock is scored on its whole outline.
+   patch of ground. Once every outline is cut, and before specks are
+   judged, touching regions that are likely pieces of one rock (a textured
+   skin broken along its veins) are joined again, the most probable pair
+   first (``rockscan.core.segment.join``), and each joined rock is scored
+   on its whole outline.
 6. **Outline.** In a window around each rock, at working size, after a
    ``smooth_sigma`` Gaussian, the rock's level is the median inside the
    detected region (less a margin) and the ground's the median of a ring
@@ -1010,6 +1011,7 @@ def _rocks_of_every_channel(
                 taken |= _whole(part, taken.shape)
     # Specks are judged against the largest rock once every outline is cut into
     # its rocks: before, the largest region may be a cluster of touching rocks.
+    rocks = _pieces_joined(rocks, outline, found[0])
     largest = max(r.area for r in rocks)
     kept = [r for r in rocks if r.area >= config.min_relative_area * largest]
     # Among several rocks, a region much smaller than the typical one is a
@@ -1019,7 +1021,6 @@ def _rocks_of_every_channel(
     if len(kept) >= MEDIAN_LEAST:
         median = float(np.median([r.area for r in kept]))
         kept = [r for r in kept if r.area >= config.min_median_area * median]
-    kept = _pieces_joined(kept, outline, found[0])
     if len(kept) == len(rocks) == len(first.rocks):
         return first
     return _assemble(kept, first.labels.shape, first.scale_rowcol, first.polarity, first.channel)
