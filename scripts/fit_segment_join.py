@@ -11,15 +11,16 @@ rocks when most of each lies on two different ones; a pair with a region
 mostly on the ground is left out.
 
 Gradient-boosted trees (scikit-learn's ``HistGradientBoostingClassifier``;
-a pair is less likely one rock the larger it is and more likely the longer
-its contact: ``MONOTONE``) learn the probability of one rock. Printed: the
-AUROC under two-fold cross-validation (scenes split in halves), and on the
-check scenes, with the trees fitted on all the fitting scenes, the counts
-of the benchmark (exact counts, rocks one to one, merges, splits) of the
-regions the join sees (before regions much smaller than the median are
-dropped), without joining and at several least probabilities. ``--write`` puts the trees into
-``rockscan/core/segment/join_model.py``, which evaluates them with numpy
-alone (checked here against scikit-learn's own predictions).
+a pair is less likely one rock the larger it is and the sharper the line
+between them, and more likely the longer its contact: ``MONOTONE``) learn
+the probability of one rock. Printed: the AUROC under two-fold
+cross-validation (scenes split in halves), and on the check scenes, with
+the trees fitted on all the fitting scenes, the counts of the benchmark
+(exact counts, rocks one to one, merges, splits) of the regions the join
+sees (before regions much smaller than the median are dropped), without
+joining and at several least probabilities. ``--write`` puts the trees
+into ``rockscan/core/segment/join_model.py``, which evaluates them with
+numpy alone (checked here against scikit-learn's own predictions).
 
 Needs scikit-learn besides rockscan (``pip install scikit-learn``)::
 
@@ -44,7 +45,7 @@ from rockscan.core.errors import NoRockFoundError
 #: A region is on a true rock (or the ground) when this share of it lies there.
 SHARE = 0.6
 #: Signs the trees keep for each feature (``join.FEATURES``): -1 decreasing, +1 increasing.
-MONOTONE = {"union": -1, "smaller": -1, "contact": 1}
+MONOTONE = {"union": -1, "smaller": -1, "contact": 1, "seam_sharpness": -1}
 #: Least probabilities tried on the check scenes.
 PROBABILITIES = (0.4, 0.5, 0.6, 0.7, 0.8)
 

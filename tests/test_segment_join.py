@@ -37,9 +37,27 @@ def test_the_features_of_two_squares_side_by_side_are_exact():
     # The seam's median lies half-way between the two levels: no darker line.
     assert got["seam"] == pytest.approx(0.0, abs=1e-12)
     # The hull runs through the outer pixels' centres: 9 x 19 for the two, 9 x 9 for each.
+    # The step between two flat skins is far sharper than either skin.
+    assert got["seam_sharpness"] > 10
     assert got["solidity"] == pytest.approx(200 / 171, rel=1e-12)
     assert got["solidity_gain"] == pytest.approx(200 / 171 - 100 / 81, rel=1e-12)
     assert got["least_solidity"] == pytest.approx(100 / 81, rel=1e-12)
+
+
+def test_a_cut_through_one_textured_skin_is_no_sharper_than_the_skin():
+    rng = np.random.default_rng(5)
+    labels = np.zeros((60, 80), np.int32)
+    labels[10:50, 10:40] = 1
+    labels[10:50, 40:70] = 2
+    gray = np.full(labels.shape, 0.2)
+    skin = labels > 0
+    gray[skin] = 0.7 + 0.05 * rng.standard_normal(np.count_nonzero(skin))
+    sharpness = join.pair_features(labels, gray)[1][0, join.FEATURES.index("seam_sharpness")]
+    assert 0.5 < sharpness < 2.0
+    # The same skin, the right half darker by a step: an edge between two rocks.
+    gray[labels == 2] -= 0.3
+    sharper = join.pair_features(labels, gray)[1][0, join.FEATURES.index("seam_sharpness")]
+    assert sharper > 3 * sharpness
 
 
 def test_regions_apart_make_no_pair():
@@ -121,11 +139,11 @@ def test_the_join_trees_keep_their_signs():
     trees = trees_of(join_model)
     assert trees.roots.size >= 10 and trees.feature.max() < len(join.FEATURES)
     rng = np.random.default_rng(0)
-    low = np.array([0.2, 0.05, 0.0, 0.5, -0.4, 0.5, 0.0, 0.0, -1.0])
-    high = np.array([4.0, 2.0, 1.0, 1.2, 0.2, 1.2, 2.0, 1.0, 1.0])
+    low = np.array([0.2, 0.05, 0.0, 0.5, -0.4, 0.5, 0.0, 0.0, -1.0, 0.0])
+    high = np.array([4.0, 2.0, 1.0, 1.2, 0.2, 1.2, 2.0, 1.0, 1.0, 5.0])
     x = rng.uniform(low, high, (500, len(join.FEATURES)))
     before = join.join_probabilities(x)
-    for name, sign in (("union", -1), ("smaller", -1), ("contact", 1)):
+    for name, sign in (("union", -1), ("smaller", -1), ("contact", 1), ("seam_sharpness", -1)):
         moved = x.copy()
         moved[:, join.FEATURES.index(name)] += rng.uniform(0.0, 1.0, len(x))
         assert np.all(sign * (join.join_probabilities(moved) - before) >= -1e-12), name
