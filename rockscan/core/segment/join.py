@@ -127,8 +127,7 @@ def joined(
         return owner
     scene = _Scene.of(labels, gray)
     members: dict[int, list[int]] = {k: [k] for k in range(1, count + 1)}
-    pairs = {(int(a), int(b)) for a, b in touching_pairs(labels)}
-    pairs = sorted(pairs)
+    pairs = [(a, b) for a, b in touching_pairs(labels).tolist()]
     first = join_probabilities(np.array([scene.features([a], [b]) for a, b in pairs]))
     measured = dict(zip(pairs, first.tolist(), strict=True))
     while measured:
@@ -166,14 +165,10 @@ class _Scene:
     brightness and the gradient's magnitude, each region's window, area and
     level, the median region's area and the ground's level."""
 
-    def __init__(self, labels, gray, boxes, areas, levels, median_area, ground) -> None:
-        import cv2
-
+    def __init__(self, labels, gray, gradient, boxes, areas, levels, median_area, ground) -> None:
         self.labels = labels
         self.gray = gray
-        smooth = cv2.GaussianBlur(gray, (0, 0), _GRADIENT_SIGMA)
-        rows, cols = np.gradient(smooth)
-        self.gradient = np.hypot(rows, cols)
+        self.gradient = gradient
         self.boxes = boxes
         self.areas = areas
         self.levels = levels
@@ -182,7 +177,12 @@ class _Scene:
 
     @classmethod
     def of(cls, labels: NDArray[np.integer], gray: NDArray[np.float64]) -> _Scene:
+        import cv2
         from scipy import ndimage
+
+        gray = np.ascontiguousarray(gray)
+        rows, cols = np.gradient(cv2.GaussianBlur(gray, (0, 0), _GRADIENT_SIGMA))
+        gradient = np.hypot(rows, cols)
 
         count = int(labels.max()) if labels.size else 0
         areas = np.bincount(labels.ravel(), minlength=count + 1).astype(np.float64)
@@ -195,7 +195,7 @@ class _Scene:
         ground = float(np.median(gray[labels == 0])) if (labels == 0).any() else 0.0
         present = areas[1:][areas[1:] > 0]
         median_area = float(np.median(present)) if present.size else 1.0
-        return cls(labels, gray, boxes, areas, levels, median_area, ground)
+        return cls(labels, gray, gradient, boxes, areas, levels, median_area, ground)
 
     def features(self, first: list[int], second: list[int]) -> list[float]:
         """:data:`FEATURES` of two groups of regions, each taken as one."""
