@@ -1009,9 +1009,11 @@ def _rocks_of_every_channel(
             if part is not None:
                 rocks.append(part)
                 taken |= _whole(part, taken.shape)
+    # Pieces of one rock are joined before specks are judged: a small piece then
+    # joins its rock rather than being dropped.
+    rocks = _pieces_joined(rocks, outline, found[0])
     # Specks are judged against the largest rock once every outline is cut into
     # its rocks: before, the largest region may be a cluster of touching rocks.
-    rocks = _pieces_joined(rocks, outline, found[0])
     largest = max(r.area for r in rocks)
     kept = [r for r in rocks if r.area >= config.min_relative_area * largest]
     # Among several rocks, a region much smaller than the typical one is a
