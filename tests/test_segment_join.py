@@ -147,3 +147,41 @@ def test_the_join_trees_keep_their_signs():
         moved = x.copy()
         moved[:, join.FEATURES.index(name)] += rng.uniform(0.0, 1.0, len(x))
         assert np.all(sign * (join.join_probabilities(moved) - before) >= -1e-12), name
+
+
+def _textured_scene(merged: bool) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Six disks apart, and two more that touch, each of its own level with a
+    grain; the two touching ones labelled as one region when ``merged``."""
+    rng = np.random.default_rng(3)
+    shape = (200, 300)
+    labels = np.zeros(shape, np.int32)
+    gray = np.full(shape, 0.3)
+    centres = [(35, 35), (35, 100), (35, 165), (35, 230), (110, 35), (110, 100)]
+    for k, centre in enumerate(centres, start=1):
+        labels[_disk(shape, centre, 22)] = k
+    left, right = _disk(shape, (120, 190), 22), _disk(shape, (120, 232), 22) & ~_disk(shape, (120, 190), 22)
+    labels[left] = 7
+    labels[right] = 7 if merged else 8
+    for k, level in enumerate([0.7, 0.75, 0.68, 0.72, 0.74, 0.69, 0.76, 0.6], start=1):
+        gray[labels == k] = level
+    gray[right] = 0.6
+    gray = gray + np.where(labels > 0, 0.02 * rng.standard_normal(shape), 0.0)
+    return labels, gray, right
+
+
+def test_two_touching_rocks_outlined_as_one_are_cut_apart():
+    labels, gray, right = _textured_scene(merged=True)
+    cuts = join.parted(labels, gray)
+    assert list(cuts) == [7]
+    cut = cuts[7]
+    iou = np.count_nonzero(cut & right) / np.count_nonzero(cut | right)
+    assert iou > 0.9, iou
+
+
+def test_a_convex_rock_or_a_small_one_is_not_cut():
+    labels, gray, _ = _textured_scene(merged=False)
+    # Every region is a disk or a disk less a sliver: convex, and none is large.
+    assert join.parted(labels, gray) == {}
+    # Nothing is cut when the halves must be less likely one rock than nothing.
+    merged, gray_merged, _ = _textured_scene(merged=True)
+    assert join.parted(merged, gray_merged, probability=0.0) == {}

@@ -75,7 +75,9 @@ Steps (see :func:`segment`):
    judged, touching regions that are likely pieces of one rock (a textured
    skin broken along its veins) are joined again, the most probable pair
    first (``rockscan.core.segment.join``), and each joined rock is scored
-   on its whole outline.
+   on its whole outline; then a large region that is not convex is cut
+   between the two peaks of its distance to the ground when the same trees
+   see two rocks in its halves (``join.parted``).
 6. **Outline.** In a window around each rock, at working size, after a
    ``smooth_sigma`` Gaussian, the rock's level is the median inside the
    detected region (less a margin) and the ground's the median of a ring
@@ -1011,7 +1013,7 @@ def _rocks_of_every_channel(
                 taken |= _whole(part, taken.shape)
     # Pieces of one rock are joined before specks are judged: a small piece then
     # joins its rock rather than being dropped.
-    rocks = _pieces_joined(rocks, outline, found[0])
+    rocks = _two_rocks_parted(_pieces_joined(rocks, outline, found[0]), outline, found[0])
     # Specks are judged against the largest rock once every outline is cut into
     # its rocks: before, the largest region may be a cluster of touching rocks.
     largest = max(r.area for r in rocks)
@@ -1028,16 +1030,47 @@ def _rocks_of_every_channel(
     return _assemble(kept, first.labels.shape, first.scale_rowcol, first.polarity, first.channel)
 
 
+def _scene_grids(
+    rocks: list[RockMask], outline: _Outliner, found: Segmentation
+) -> tuple[NDArray[np.int32], list[RockMask], NDArray[np.float32]]:
+    """The rocks as labels on the working grid, the rocks in label order, and
+    the working image's brightness: what the join reads of a scene."""
+    work = outline.works[id(found)][0]
+    labels = _assemble(rocks, work.shape[:2], found.scale_rowcol, found.polarity, found.channel).labels
+    ordered = sorted(rocks, key=lambda r: -r.area)  # _assemble's label order
+    unit = _unit(np.ascontiguousarray(work[..., :3] if work.ndim == 3 else work), outline.dtype)
+    return labels, ordered, unit @ _LUMA if unit.ndim == 3 else unit
+
+
+def _two_rocks_parted(rocks: list[RockMask], outline: _Outliner, found: Segmentation) -> list[RockMask]:
+    """The rocks with every large region that is two rocks cut in two
+    (``join.parted``); each half keeps the coverage of its territory and the
+    score of the outline it was cut from."""
+    if len(rocks) < 2:
+        return rocks
+    labels, ordered, gray = _scene_grids(rocks, outline, found)
+    cuts = join.parted(labels, gray)
+    if not cuts:
+        return rocks
+    out = []
+    for index, rock in enumerate(ordered, start=1):
+        if index not in cuts:
+            out.append(rock)
+            continue
+        r0, c0 = rock.origin_rowcol
+        h, w = rock.mask.shape
+        half = cuts[index][r0 : r0 + h, c0 : c0 + w] & rock.mask
+        out.extend(_pieces(rock, [rock.mask & ~half, half]))
+    return out
+
+
 def _pieces_joined(rocks: list[RockMask], outline: _Outliner, found: Segmentation) -> list[RockMask]:
     """The rocks with pieces of one rock joined (``rockscan.core.segment.join``),
     each joined rock scored anew on its whole outline."""
     if len(rocks) < 2:
         return rocks
     work, up, detection = outline.works[id(found)]
-    labels = _assemble(rocks, work.shape[:2], found.scale_rowcol, found.polarity, found.channel).labels
-    ordered = sorted(rocks, key=lambda r: -r.area)  # _assemble's label order
-    unit = _unit(np.ascontiguousarray(work[..., :3] if work.ndim == 3 else work), outline.dtype)
-    gray = unit @ _LUMA if unit.ndim == 3 else unit
+    labels, ordered, gray = _scene_grids(rocks, outline, found)
     owner = join.joined(labels, gray)
     if np.array_equal(owner, np.arange(owner.size)):
         return rocks
