@@ -92,6 +92,24 @@ def test_to_gray_is_bt601_luminance():
         to_gray(np.zeros((2, 2, 2)))
 
 
+def test_the_hue_channel_is_the_distance_from_the_grounds_chromaticity():
+    from rockscan.core.segment.channels import _border_chromaticity, _channels
+
+    image = np.full((40, 60, 3), 0.4, np.float32)
+    image[10:30, 20:40] = (0.6, 0.3, 0.3)  # chromaticity (0.5, 0.25, 0.25)
+    image[0, 0] = (0.01, 0.02, 0.0)  # too dark for a hue
+    ground = _border_chromaticity(image)
+    np.testing.assert_allclose(ground, [1 / 3] * 3, atol=1e-6)
+    assert [c.name for c in _channels(image)] == ["luminance", "chromaticity"]
+    hue = list(_channels(image, every_hue=True))[-1]
+    assert hue.name == "hue"
+    values = hue.values(image)
+    # |(0.5, 0.25, 0.25) - (1/3, 1/3, 1/3)| = sqrt(1/36 + 2/144) = sqrt(6) / 12.
+    np.testing.assert_allclose(values[20, 30], np.sqrt(6) / 12, rtol=1e-5)
+    assert values[35, 5] == pytest.approx(0.0, abs=1e-6)
+    assert values[0, 0] == 0.0
+
+
 def test_an_alpha_channel_that_cuts_the_rock_out_is_used():
     cover = coverage((120, 160), (60.0, 70.0), (25.0, 40.0))
     rgba = np.zeros((120, 160, 4), np.uint8)

@@ -154,6 +154,18 @@ def test_two_rocks_outlined_as_one_are_cut_where_the_join_sees_two(index, matche
     assert crowd.matched >= matched, crowd
 
 
+@pytest.mark.parametrize(("index", "matched"), [(22, 29), (740, 24)])
+def test_rocks_of_the_grounds_brightness_are_found_by_their_distance_from_its_hue(index, matched):
+    # Development crowded scenes 22 and 740 (32 and 30 rocks): rocks of the
+    # ground's own brightness, in hues on several sides of the ground's, were
+    # missed by brightness and by the principal direction of the chromaticity
+    # (27 and 21 rocks one to one) until the distance from the ground's hue
+    # looked for rocks where none was found: 30 and 26.
+    crowd = judged("crowded", index)
+    assert crowd.matched >= matched, crowd
+    assert crowd.merges == 0, crowd
+
+
 def test_a_piece_far_smaller_than_the_typical_rock_is_no_rock_of_its_own():
     # Development scene 32: 32 rocks, and a 33rd region, a piece under a
     # fifth of the median rock's area, until such regions were dropped

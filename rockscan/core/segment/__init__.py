@@ -15,7 +15,10 @@ Steps (see :func:`segment`):
    are bounded for any photo size.
 2. **Channel.** Luminance. Only if it shows no rock, the first principal
    component of the chromaticity ``rgb / (r + g + b)`` (a rock of another hue
-   than its ground but of the same brightness). An alpha channel that really
+   than its ground but of the same brightness); with ``all_rocks`` every
+   channel, and last the distance of each pixel's chromaticity from the
+   ground's (the median along the frame's border), which sees rocks of any
+   hue, where the projection sees one side of one direction. An alpha channel that really
    cuts the rock out (5% to 98% of the frame transparent) is used directly.
 3. **Lighting.** After a median filter and a Gaussian of ``detect_sigma``
    (sensor noise, JPEG blocks, fine texture), a polynomial surface of degree
@@ -986,31 +989,45 @@ def _rocks_of_every_channel(
     """Every rock of a photo (``all_rocks``; module docstring, step 5), or None.
 
     The rocks of the first channel that shows any, and those of a later
-    channel (chromaticity after luminance) that lie where no earlier rock is:
-    a rock that differs from its ground in hue only is no rock to luminance,
-    and a scene can hold both kinds. Every channel's rocks are outlined on
+    channel (chromaticity after luminance, then the distance from the
+    ground's hue) that lie where no earlier rock is: a rock that differs from
+    its ground in hue only is no rock to luminance, and a scene can hold both
+    kinds, in hues on every side of the ground's. Every channel's rocks are outlined on
     one working image, at the scale the smallest of them asks for.
     """
     detections = []
-    for channel in _channels(small):
+    for channel in _channels(small, every_hue=True):
         detection = _detect(channel.values(small), channel, config, True)
         if detection is not None:
             detections.append(detection)
     if not detections:
         return None
     scale = min(outline.work_scale(d) for d in detections)
-    found = [f for d in detections if (f := outline(d, work_scale=scale)) is not None]
-    if not found:
+    found: list[Segmentation] = []
+    rocks: list[RockMask] = []
+    first, taken = None, None
+    for detection in detections:
+        if taken is not None and detection.channel.name == "hue":
+            detection = _unseen(detection, taken, outline, found[0])
+            if detection is None:
+                continue
+        made = outline(detection, work_scale=scale)
+        if made is None:
+            continue
+        parted = _parted(made, outline.works[id(made)][0], outline.dtype)
+        if first is None or taken is None:
+            first = parted
+            rocks = list(first.rocks)
+            taken = first.labels > 0
+        else:
+            for rock in parted.rocks:
+                part = _where_free(rock, taken)
+                if part is not None:
+                    rocks.append(part)
+                    taken |= _whole(part, taken.shape)
+        found.append(made)
+    if first is None:
         return None
-    first, *later = (_parted(f, outline.works[id(f)][0], outline.dtype) for f in found)
-    rocks = list(first.rocks)
-    taken = first.labels > 0
-    for other in later:
-        for rock in other.rocks:
-            part = _where_free(rock, taken)
-            if part is not None:
-                rocks.append(part)
-                taken |= _whole(part, taken.shape)
     # Pieces of one rock are joined before specks are judged: a small piece then
     # joins its rock rather than being dropped.
     rocks = _two_rocks_parted(_pieces_joined(rocks, outline, found[0]), outline, found[0])
@@ -1028,6 +1045,40 @@ def _rocks_of_every_channel(
     if len(kept) == len(rocks) == len(first.rocks):
         return first
     return _assemble(kept, first.labels.shape, first.scale_rowcol, first.polarity, first.channel)
+
+
+def _unseen(
+    detection: _Detection, taken: NDArray[np.bool_], outline: _Outliner, found: Segmentation
+) -> _Detection | None:
+    """The detection with only the regions that lie mostly where no rock is yet
+    (``taken``, on ``found``'s working grid), or None if none does; the others
+    stay as neighbours that bound the territories of the rest.
+
+    The distance from the ground's hue sees most rocks that brightness or the
+    principal hue already outlined: outlining them again costs as much as
+    finding them, only for each to be dropped as taken.
+    """
+    work, up, _ = outline.works[id(found)]
+    to_row, to_col = outline.to_detect(work.shape[:2], up)
+    shape = detection.regions[0].shape
+    # Each detection pixel's share of working pixels already taken.
+    cells = (to_row[:, None] * shape[1] + to_col[None, :]).ravel()
+    counts = np.bincount(cells, minlength=shape[0] * shape[1])
+    hits = np.bincount(cells, weights=taken.ravel(), minlength=shape[0] * shape[1])
+    seen = (hits > 0.5 * np.maximum(counts, 1)).reshape(shape)
+    new, old = [], []
+    for region in detection.regions:
+        inside = np.count_nonzero(region & seen)
+        (old if inside > UNSEEN_SHARE * np.count_nonzero(region) else new).append(region)
+    if not new:
+        return None
+    return dataclasses.replace(detection, regions=new, others=detection.others + old)
+
+
+#: Largest share of a region of the hue's detection that may lie where a rock
+#: is already outlined for it to be outlined itself (``FREE_SHARE`` keeps a
+#: rock only where at least 0.8 of its outline is free).
+UNSEEN_SHARE = 0.9
 
 
 def _scene_grids(

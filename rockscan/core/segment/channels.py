@@ -100,10 +100,15 @@ class _Channel:
     multiplicative: bool
     direction: NDArray[np.float32] | None = None
     center: NDArray[np.float32] | None = None
+    #: The ground's chromaticity: with it, the channel is each pixel's distance
+    #: from it in the chromaticity plane (any hue away from the ground's).
+    ground: NDArray[np.float32] | None = None
 
     def values(self, image: NDArray[np.float32]) -> NDArray[np.float32]:
         if image.ndim == 2:
             return image
+        if self.ground is not None:
+            return _hue_distance(image, self.ground)
         if self.direction is None:
             return image @ _LUMA
         total = image.sum(axis=2)
@@ -112,10 +117,37 @@ class _Channel:
         return np.where(total > 0.06, projected, 0.0).astype(np.float32)
 
 
-def _channels(small: NDArray[np.float32]) -> Iterator[_Channel]:
+def _hue_distance(image: NDArray[np.float32], ground: NDArray[np.float32]) -> NDArray[np.float32]:
+    """Distance of each pixel's chromaticity ``rgb / (r + g + b)`` from ``ground``'s
+    (0 where there is too little light for a hue)."""
+    total = image.sum(axis=2)
+    chroma = image / np.maximum(total, 0.06)[..., None]
+    distance = np.sqrt(((chroma - ground) ** 2).sum(axis=2))
+    return np.where(total > 0.06, distance, 0.0).astype(np.float32)
+
+
+def _border_chromaticity(image: NDArray[np.float32]) -> NDArray[np.float32] | None:
+    """The median chromaticity of a band along the frame's border (the ground's,
+    as detection first learns it), or None where the band is too dark."""
+    rows, cols = image.shape[:2]
+    width = max(2, round(0.04 * min(rows, cols)))
+    band = np.zeros((rows, cols), bool)
+    band[:width], band[-width:], band[:, :width], band[:, -width:] = True, True, True, True
+    total = image.sum(axis=2)
+    lit = band & (total > 0.06)
+    if np.count_nonzero(lit) < 16:
+        return None
+    return np.median(image[lit] / total[lit, None], axis=0).astype(np.float32)
+
+
+def _channels(small: NDArray[np.float32], *, every_hue: bool = False) -> Iterator[_Channel]:
     """Candidate channels, learnt from the detection image (module docstring, step 2).
 
-    A generator: the chromaticity is only worked out when the caller asks past luminance.
+    A generator: the chromaticity is only worked out when the caller asks past
+    luminance. With ``every_hue`` (``--all``), last the distance from the
+    ground's hue: the rocks of a scene may each have a hue of their own, on
+    either side of the ground's along the principal direction or across it,
+    where the projection sees only one side of one direction.
     """
     yield _Channel("luminance", True)
     if small.ndim == 2:
@@ -131,3 +163,6 @@ def _channels(small: NDArray[np.float32]) -> Iterator[_Channel]:
     if values[-1] > 1e-5:
         direction = vectors[:, -1].astype(np.float32)
         yield _Channel("chromaticity", False, direction, center.astype(np.float32))
+        ground = _border_chromaticity(small) if every_hue else None
+        if ground is not None:
+            yield _Channel("hue", False, ground=ground)

@@ -188,7 +188,7 @@ class Segmentation:
         Photo pixels per working pixel along rows and columns.
     polarity : {"dark", "light"}
         Whether the rocks are darker or lighter than the ground.
-    channel : {"luminance", "chromaticity", "alpha"}
+    channel : {"luminance", "chromaticity", "hue", "alpha"}
         The channel the rocks were found in.
     """
 
