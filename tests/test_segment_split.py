@@ -17,7 +17,7 @@ from test_segment import coverage, photo_of
 
 import rockscan.run.pipeline
 from rockscan.core.outline import trace_outline
-from rockscan.core.segment import CONFIDENT_SCORE, segment
+from rockscan.core.segment import CONFIDENT_SCORE, SegmentConfig, segment
 from rockscan.core.segment.score import outline_evidence, outline_score
 from rockscan.core.segment.split import (
     pockets,
@@ -526,7 +526,8 @@ def _best_iou(seg, truth):
     return ((labels == found) & truth).sum() / ((labels == found) | truth).sum()
 
 
-def test_all_rocks_finds_rocks_of_hues_on_both_sides_of_the_grounds():
+@pytest.mark.parametrize("polarity", ["auto", "dark", "light"])
+def test_all_rocks_finds_rocks_of_hues_on_both_sides_of_the_grounds(polarity):
     # Rocks of the ground's own luminance, one redder and one bluer than a gray
     # ground, and a third greener: along the principal direction of the
     # chromaticity the first two lie on opposite sides of the ground, and one
@@ -545,7 +546,9 @@ def test_all_rocks_finds_rocks_of_hues_on_both_sides_of_the_grounds():
     image += rng.normal(0.0, 0.01, image.shape)
     pixels = np.clip(np.round(image * 255), 0, 255).astype(np.uint8)
 
-    seg = segment(pixels, all_rocks=True)
+    # The rocks are of the ground's brightness: a polarity set for brightness
+    # does not keep them from standing out in hue.
+    seg = segment(pixels, SegmentConfig(polarity=polarity), all_rocks=True)
     assert seg.n_rocks == 3
     for rock in rocks:
         assert _best_iou(seg, rock > 0.5) > 0.85

@@ -997,7 +997,10 @@ def _rocks_of_every_channel(
     """
     detections = []
     for channel in _channels(small, every_hue=True):
-        detection = _detect(channel.values(small), channel, config, True)
+        # A rock lies farther from the ground's hue than the ground, whatever
+        # its brightness: a polarity set for brightness is no polarity of hue.
+        own = dataclasses.replace(config, polarity="light") if channel.name == "hue" else config
+        detection = _detect(channel.values(small), channel, own, True)
         if detection is not None:
             detections.append(detection)
     if not detections:
