@@ -15,6 +15,7 @@ from hypothesis import strategies as st
 from skimage.draw import polygon2mask
 from test_segment import coverage, photo_of
 
+import rockscan.core.segment
 import rockscan.run.pipeline
 from rockscan.core.outline import trace_outline
 from rockscan.core.segment import CONFIDENT_SCORE, SegmentConfig, segment
@@ -552,6 +553,36 @@ def test_all_rocks_finds_rocks_of_hues_on_both_sides_of_the_grounds(polarity):
     assert seg.n_rocks == 3
     for rock in rocks:
         assert _best_iou(seg, rock > 0.5) > 0.85
+
+
+def test_with_all_a_light_rock_is_outlined_nearer_its_grounds_level(monkeypatch):
+    # A light disc of radius 40 whose brightness rises linearly from the
+    # ground's 0.4 at its left edge to the rock's 0.8 at its centre (the side
+    # turned from the light). An outline at a share t of the way from the
+    # ground's level to the rock's cuts the disc 40 t px in from that edge,
+    # leaving out a circular segment: IoU 0.882 at LIGHT_EDGE (0.35), 0.804
+    # half-way.
+    shape = (160, 200)
+    cols = np.arange(shape[1])[None, :]
+    centre, radius = (80.0, 100.0), 40.0
+    disc = coverage(shape, centre, (radius, radius))
+    along = np.clip((cols - (centre[1] - radius)) / radius, 0.0, 1.0)
+    image = 0.4 * (1 - disc) + (0.4 + 0.4 * along) * disc
+    image = image + np.random.default_rng(2).normal(0.0, 0.005, shape)
+    pixels = np.clip(np.round(image * 255), 0, 255).astype(np.uint8)
+    truth = disc > 0.5
+
+    def segment_iou(share):
+        h = share * radius
+        lost = radius**2 * np.arccos((radius - h) / radius) - (radius - h) * np.sqrt(2 * radius * h - h * h)
+        return 1.0 - lost / (np.pi * radius**2)
+
+    nearer = _best_iou(segment(pixels, all_rocks=True), truth)
+    assert nearer == pytest.approx(segment_iou(rockscan.core.segment.LIGHT_EDGE), abs=0.03)
+    monkeypatch.setattr(rockscan.core.segment, "LIGHT_EDGE", 0.5)
+    half_way = _best_iou(segment(pixels, all_rocks=True), truth)
+    assert half_way == pytest.approx(segment_iou(0.5), abs=0.03)
+    assert half_way < nearer - 0.04
 
 
 def _two_discs(shape, centers, radius):

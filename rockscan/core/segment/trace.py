@@ -47,8 +47,10 @@ def _outline_rock(
     up: tuple[float, float],
     detection: _Detection,
     config: SegmentConfig,
+    edge: float = 0.5,
 ) -> RockMask | None:
-    """Outline one detected rock at working size (module docstring, step 6)."""
+    """Outline one detected rock at working size (module docstring, step 6),
+    ``edge`` of the way from the ground's level to the rock's."""
     rows, cols = work.shape[:2]
     # Working pixel -> nearest detection pixel, along each axis.
     to_row = np.minimum(((np.arange(rows) + 0.5) / up[0]).astype(np.int64), region.shape[0] - 1)
@@ -64,7 +66,7 @@ def _outline_rock(
     # or has grown past four times the detection, has flooded the ground.
     for _ in range(3):
         rock, reaches_edge = _threshold_rock(
-            work, dtype, estimate, origin, territory, (to_row, to_col), up, detection, config
+            work, dtype, estimate, origin, territory, (to_row, to_col), up, detection, config, edge
         )
         if rock is None or not reaches_edge:
             break
@@ -217,11 +219,14 @@ def _threshold_rock(
     up: tuple[float, float],
     detection: _Detection,
     config: SegmentConfig,
+    edge: float = 0.5,
 ) -> tuple[RockMask | None, bool]:
-    """Threshold half-way between rock and ground in a window around an estimate of the rock.
+    """Threshold ``edge`` of the way from ground to rock (half-way by default)
+    in a window around an estimate of the rock.
 
     Returns the rock and whether it reaches an edge of the window that is not
-    the frame's.
+    the frame's. Its coverage is the level scaled so that ``edge`` is 0.5 and
+    the rock 1: the outline traced at 0.5 of it lies at ``edge``.
     """
     import cv2
 
@@ -272,7 +277,7 @@ def _threshold_rock(
         level[ceiling] = np.maximum(level[ceiling], 1.0)
     # A touching neighbour beyond half-way is not this rock: keep to its territory.
     own = territory[to_row[r0:r1, None], to_col[None, c0:c1]]
-    count, labels = cv2.connectedComponents(((level > 0.5) & own).astype(np.uint8), connectivity=4)
+    count, labels = cv2.connectedComponents(((level > edge) & own).astype(np.uint8), connectivity=4)
     overlap = np.bincount(labels[core], minlength=count)
     overlap[0] = 0
     if overlap.max() == 0:
@@ -280,7 +285,7 @@ def _threshold_rock(
     mask = _fill_holes(labels == int(np.argmax(overlap)))
     if np.count_nonzero(mask) < 0.25 * np.count_nonzero(detected):
         return _fallback(detected, (r0, c0)), False
-    coverage = np.clip(level, 0.0, 1.0).astype(np.float32)
+    coverage = np.clip(0.5 + (level - edge) * (0.5 / (1.0 - edge)), 0.0, 1.0).astype(np.float32)
     # Only this rock's own edge: filled holes count as rock, anything beyond
     # a pixel of its mask as ground.
     coverage[mask & (coverage < 0.5)] = 1.0
