@@ -94,7 +94,9 @@ Steps (see :func:`segment`):
    rather than the smoothed hue's. Half-way between
    rock and ground is where a blurred step edge lies, whatever the blur.
    Pixels clipped by the sensor on a light rock count as rock. The connected
-   part beyond half-way that overlaps the detection is the rock; its holes
+   part beyond half-way (with ``all_rocks``, beyond ``LIGHT_EDGE`` of the way
+   for a light rock, whose side turned from the light falls to the ground's
+   level) that overlaps the detection is the rock; its holes
    (texture, glints, engravings) are filled. If it reaches the window's edge,
    the window is widened around it and the step repeated (at most three
    times). If it still reaches it, or its area is under a quarter or over
