@@ -1091,7 +1091,8 @@ def _unseen(
 #: development crowded scenes 0-199 (exact counts 81, 82, 82, 79 and 83 of 200
 #: at 0.5, 0.42, 0.35, 0.3 and 0.25; rocks one to one 93.27%, 93.31%, 93.66%,
 #: 93.61% and 93.61%; merges 67, 71, 70, 78 and 81); for dark rocks as well at
-#: 0.35, 92.90% (merges 89): a dark rock's lit face is as often a neighbour's.
+#: 0.35, 92.90% (merges 89), at 0.45, 80 exact and 93.61% (merges 80): a dark
+#: rock's lit face is as often a neighbour's.
 LIGHT_EDGE = 0.35
 
 
