@@ -66,11 +66,15 @@ Steps (see :func:`segment`):
    Rocks of a later channel (chromaticity, after luminance) are added where
    they lie mostly (``FREE_SHARE``) outside every rock found before: a scene
    can hold rocks that differ from the ground in brightness and others that
-   differ in hue only. In a colour photo, an outline that is not convex and
-   holds two clearly different colours, each in one piece, is cut between
-   them (``split.split_colours``): touching rocks of different hues. An
-   outline that is not convex and has a dark seam across it from end to end
-   is cut along it (``split.split_seams``): touching rocks of one colour.
+   differ in hue only. After each channel, what of its regions no outline
+   took, where it makes a round, solid part of a rock's size, is outlined at
+   its own level (``_left_over``): a dimmer rock touching brighter ones grows
+   into their region and lies under the level their outlines are drawn at.
+   In a colour photo, an outline that is not convex and holds two clearly
+   different colours, each in one piece, is cut between them
+   (``split.split_colours``): touching rocks of different hues. An outline
+   that is not convex and has a dark seam across it from end to end is cut
+   along it (``split.split_seams``): touching rocks of one colour.
    Before those, an outline of at least ``POCKET_LARGE`` times the median
    outline's area that encloses pockets of the ground's colour is cut at
    its necks round them (``split.split_pockets``): rocks that touch round a
@@ -1028,12 +1032,15 @@ def _rocks_of_every_channel(
             rocks = list(first.rocks)
             taken = first.labels > 0
         else:
-            for rock in parted.rocks:
-                part = _where_free(rock, taken)
-                if part is not None:
-                    rocks.append(part)
-                    taken |= _whole(part, taken.shape)
+            _add_where_free(parted.rocks, rocks, taken)
         found.append(made)
+        # A dim rock wedged between brighter ones lies in their region, under
+        # the level their outlines are drawn at: what no outline took, where
+        # it makes a rock of its own, is outlined at its own level.
+        left = _left_over(detection, taken, outline, found[0], rocks)
+        made = None if left is None else outline(left, work_scale=scale, edge=edge)
+        if made is not None:
+            _add_where_free(_parted(made, outline.works[id(made)][0], outline.dtype).rocks, rocks, taken)
     if first is None:
         return None
     # Pieces of one rock are joined before specks are judged: a small piece then
@@ -1055,6 +1062,81 @@ def _rocks_of_every_channel(
     return _assemble(kept, first.labels.shape, first.scale_rowcol, first.polarity, first.channel)
 
 
+def _add_where_free(new: list[RockMask], rocks: list[RockMask], taken: NDArray[np.bool_]) -> None:
+    """Append to ``rocks`` what of each new rock is free (``_where_free``), and mark it ``taken``."""
+    for rock in new:
+        part = _where_free(rock, taken)
+        if part is not None:
+            rocks.append(part)
+            taken |= _whole(part, taken.shape)
+
+
+def _taken_on_detection(
+    shape: tuple[int, int], taken: NDArray[np.bool_], outline: _Outliner, found: Segmentation
+) -> NDArray[np.bool_]:
+    """The detection pixels (of a detection image of ``shape``) more than half
+    of whose working pixels (``found``'s working grid) are ``taken``."""
+    work, up, _ = outline.works[id(found)]
+    to_row, to_col = outline.to_detect(work.shape[:2], up)
+    cells = (to_row[:, None] * shape[1] + to_col[None, :]).ravel()
+    counts = np.bincount(cells, minlength=shape[0] * shape[1])
+    hits = np.bincount(cells, weights=taken.ravel(), minlength=shape[0] * shape[1])
+    return (hits > 0.5 * np.maximum(counts, 1)).reshape(shape)
+
+
+def _left_over(
+    detection: _Detection,
+    taken: NDArray[np.bool_],
+    outline: _Outliner,
+    found: Segmentation,
+    rocks: list[RockMask],
+) -> _Detection | None:
+    """The parts of the detection's regions that no rock took and that make a
+    rock of their own, as a detection whose neighbours are the rocks taken;
+    None if there are none.
+
+    A part counts when it is at least ``LEFT_AREA`` of the median rock found so
+    far, round (the disk inscribed in it at least ``LEFT_ROUND`` of the radius
+    of a disk of its area) and solid (``LEFT_SOLIDITY``): the rim a rock's
+    outline left out is a crescent along it, a piece of ground between rocks
+    is ragged.
+    """
+    import cv2
+
+    if not rocks:
+        return None
+    shape = detection.regions[0].shape
+    seen = _taken_on_detection(shape, taken, outline, found)
+    # An opening by a pixel parts what touches only along a thread.
+    left = np.logical_or.reduce(detection.regions) & ~seen
+    left = cv2.morphologyEx(left.astype(np.uint8), cv2.MORPH_OPEN, _disk(1))
+    _, labels, stats, _ = cv2.connectedComponentsWithStats(left, connectivity=4)
+    _, up, _ = outline.works[id(found)]
+    least = LEFT_AREA * float(np.median([r.area for r in rocks])) / (up[0] * up[1])
+    parts = []
+    for index in np.flatnonzero(stats[1:, cv2.CC_STAT_AREA] >= least) + 1:
+        part = labels == index
+        inscribed = cv2.distanceTransform(np.pad(part, 1).astype(np.uint8), cv2.DIST_L2, 5).max()
+        area = float(stats[index, cv2.CC_STAT_AREA])
+        if inscribed >= LEFT_ROUND * math.sqrt(area / math.pi) and solidity(part) >= LEFT_SOLIDITY:
+            parts.append(part)
+    if not parts:
+        return None
+    return dataclasses.replace(detection, regions=parts, others=[seen])
+
+
+#: A part of a detected region that no rock took is a rock of its own
+#: (:func:`_left_over`) when its area is at least this share of the median
+#: rock's, ...
+LEFT_AREA = 0.3
+#: ... the disk inscribed in it has at least this share of the radius of a
+#: disk of its area ...
+LEFT_ROUND = 0.7
+#: ... and its solidity is at least this. Chosen on the development crowded
+#: scenes 0-199 (module docstring of :mod:`rockscan.core.segment`, step 5).
+LEFT_SOLIDITY = 0.9
+
+
 def _unseen(
     detection: _Detection, taken: NDArray[np.bool_], outline: _Outliner, found: Segmentation
 ) -> _Detection | None:
@@ -1066,14 +1148,7 @@ def _unseen(
     principal hue already outlined: outlining them again costs as much as
     finding them, only for each to be dropped as taken.
     """
-    work, up, _ = outline.works[id(found)]
-    to_row, to_col = outline.to_detect(work.shape[:2], up)
-    shape = detection.regions[0].shape
-    # Each detection pixel's share of working pixels already taken.
-    cells = (to_row[:, None] * shape[1] + to_col[None, :]).ravel()
-    counts = np.bincount(cells, minlength=shape[0] * shape[1])
-    hits = np.bincount(cells, weights=taken.ravel(), minlength=shape[0] * shape[1])
-    seen = (hits > 0.5 * np.maximum(counts, 1)).reshape(shape)
+    seen = _taken_on_detection(detection.regions[0].shape, taken, outline, found)
     new, old = [], []
     for region in detection.regions:
         inside = np.count_nonzero(region & seen)
