@@ -183,12 +183,13 @@ def test_light_rocks_keep_their_shaded_sides_with_all(index, matched):
 def test_a_rock_in_its_neighbours_region_under_their_outlines_level_is_outlined_at_its_own(
     index, matched, monkeypatch
 ):
-    # Development crowded scenes 29 and 190 (37 and 25 rocks): a dimmer rock
-    # touching brighter ones grew into their detected region, and lay under
-    # the level their outlines were drawn at: no outline took it. What of a
-    # region no rock took, where it is a round, solid part of a rock's size,
-    # is outlined at its own level (_left_over): 36 -> 37 and 22 -> 23 one to
-    # one.
+    # Development crowded scenes 29 and 190 (37 and 25 rocks): a rock lay in a
+    # detected region under the level that region's outline was drawn at
+    # (scene 29: a light rock of which the outline took a thin piece; scene
+    # 190: a rock between two larger, brighter ones, which took none of it).
+    # What of a region no rock took, where it is a round, solid part of a
+    # rock's size, is outlined at its own level (_left_over): 36 -> 37 and
+    # 22 -> 23 one to one.
     crowd = judged("crowded", index)
     assert crowd.matched >= matched, crowd
     monkeypatch.setattr(rockscan.core.segment, "_left_over", lambda *args: None)
