@@ -113,28 +113,42 @@ class _Channel:
             return image @ _LUMA
         total = image.sum(axis=2)
         # Chromaticity is noise where there is no light; the darkest pixels get the mean.
-        projected = (image @ self.direction - self.center @ self.direction * total) / np.maximum(total, 0.06)
-        return np.where(total > 0.06, projected, 0.0).astype(np.float32)
+        projected = (image @ self.direction - self.center @ self.direction * total) / np.maximum(
+            total, _LEAST_LIGHT
+        )
+        return np.where(total > _LEAST_LIGHT, projected, 0.0).astype(np.float32)
+
+
+#: Least sum of a pixel's red, green and blue (each in [0, 1]) for it to have a
+#: hue: darker, the chromaticity ``rgb / (r + g + b)`` is noise.
+_LEAST_LIGHT = 0.06
+
+
+def border_band(shape: tuple[int, int]) -> NDArray[np.bool_]:
+    """A band along the frame's border, 4% of the shorter side wide (at least
+    2 pixels): where the ground is first learnt, since a rock that lies inside
+    the frame is not there, whatever share of the frame it covers."""
+    rows, cols = shape
+    width = max(2, round(0.04 * min(rows, cols)))
+    band = np.zeros((rows, cols), dtype=bool)
+    band[:width], band[-width:], band[:, :width], band[:, -width:] = True, True, True, True
+    return band
 
 
 def _hue_distance(image: NDArray[np.float32], ground: NDArray[np.float32]) -> NDArray[np.float32]:
     """Distance of each pixel's chromaticity ``rgb / (r + g + b)`` from ``ground``'s
     (0 where there is too little light for a hue)."""
     total = image.sum(axis=2)
-    chroma = image / np.maximum(total, 0.06)[..., None]
+    chroma = image / np.maximum(total, _LEAST_LIGHT)[..., None]
     distance = np.sqrt(((chroma - ground) ** 2).sum(axis=2))
-    return np.where(total > 0.06, distance, 0.0).astype(np.float32)
+    return np.where(total > _LEAST_LIGHT, distance, 0.0).astype(np.float32)
 
 
 def _border_chromaticity(image: NDArray[np.float32]) -> NDArray[np.float32] | None:
     """The median chromaticity of a band along the frame's border (the ground's,
     as detection first learns it), or None where the band is too dark."""
-    rows, cols = image.shape[:2]
-    width = max(2, round(0.04 * min(rows, cols)))
-    band = np.zeros((rows, cols), bool)
-    band[:width], band[-width:], band[:, :width], band[:, -width:] = True, True, True, True
     total = image.sum(axis=2)
-    lit = band & (total > 0.06)
+    lit = border_band(image.shape[:2]) & (total > _LEAST_LIGHT)
     if np.count_nonzero(lit) < 16:
         return None
     return np.median(image[lit] / total[lit, None], axis=0).astype(np.float32)
@@ -153,7 +167,7 @@ def _channels(small: NDArray[np.float32], *, every_hue: bool = False) -> Iterato
     if small.ndim == 2:
         return
     total = small.sum(axis=2)
-    lit = total > 0.06
+    lit = total > _LEAST_LIGHT
     if lit.sum() < 16:
         return
     chroma = small[lit] / total[lit, None]

@@ -10,7 +10,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-from rockscan.core.segment.channels import _Channel, _unit
+from rockscan.core.segment.channels import _Channel, _unit, border_band
 from rockscan.core.segment.split import label_image, rejoined, split_rocks
 from rockscan.core.segment.stats import robust_spread
 from rockscan.core.segment.types import RockMask, SegmentConfig
@@ -164,11 +164,7 @@ def _detect(
     rows, cols = image.shape
     rows_norm, cols_norm = _norm_coords(rows), _norm_coords(cols)
     min_area = max(12.0, config.min_area_fraction * rows * cols)
-    # The ground is first learnt from the frame's border, where a rock that
-    # lies inside the frame is not, whatever share of the frame it covers.
-    width = max(2, round(0.04 * min(rows, cols)))
-    ground = np.zeros((rows, cols), dtype=bool)
-    ground[:width], ground[-width:], ground[:, :width], ground[:, -width:] = True, True, True, True
+    ground = border_band((rows, cols))
     kernel = np.ones((5, 5), np.uint8)
     fit_ground = stat_ground = ground
     for round_ in range(config.iterations + 1):
