@@ -33,7 +33,7 @@ from rockscan.core.superformula import SuperformulaParams
 from rockscan.io import default_spec_path, load_library, read_spec
 from rockscan.io.folders import find_photos
 from rockscan.io.report import CSV_COLUMNS, ROW_KEYS, ReportJournal, rank_key, read_provenance, read_rows
-from rockscan.run.backends import _ProcessBackend, _run_backend
+from rockscan.run.backends import _ProcessBackend, _run_backend, held_interrupts
 from rockscan.run.photo import PhotoOutcome
 from rockscan.run.report import finalize_report
 from rockscan.run.triage import TriageConfig, interest_score, triage_folder, triage_row
@@ -479,6 +479,39 @@ class _ThreadBackend:
 
     def close(self) -> None:
         self._pool.shutdown()
+
+
+def test_a_held_ctrl_c_is_raised_by_the_run_and_a_second_at_once():
+    before = signal.getsignal(signal.SIGINT)
+    backend = _ThreadBackend(40)
+    seen = []
+    try:
+        with held_interrupts() as stop, pytest.raises(KeyboardInterrupt):
+            for i, _ in _run_backend(
+                [str(i) for i in range(40)], backend, window=4, ordered=False, stop=stop
+            ):
+                seen.append(i)
+                if len(seen) == 3:
+                    signal.raise_signal(signal.SIGINT)
+                    assert stop.is_set()  # held: this photo's row is still taken
+                    seen.append("held")
+    finally:
+        backend.close()
+    assert seen[3] == "held" and 4 <= len(seen) < 41
+    with held_interrupts(), pytest.raises(KeyboardInterrupt):
+        signal.raise_signal(signal.SIGINT)
+        signal.raise_signal(signal.SIGINT)
+    assert signal.getsignal(signal.SIGINT) is before
+
+
+def test_an_ignored_ctrl_c_stays_ignored_while_workers_run():
+    previous = signal.signal(signal.SIGINT, signal.SIG_IGN)
+    try:
+        with held_interrupts() as stop:
+            signal.raise_signal(signal.SIGINT)
+        assert not stop.is_set() and signal.getsignal(signal.SIGINT) is signal.SIG_IGN
+    finally:
+        signal.signal(signal.SIGINT, previous)
 
 
 @pytest.mark.parametrize("ordered", [True, False])

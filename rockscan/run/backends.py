@@ -14,6 +14,7 @@ import logging
 import os
 import signal
 import sys
+import threading
 import time
 from collections import deque
 from collections.abc import Callable, Iterator
@@ -250,9 +251,57 @@ class _QuietLogger:
 #: How long to wait for a photo before asking the backend whether it is alive, seconds.
 _POLL_S = 2.0
 
+#: How often a run waiting on its photos looks for a held Ctrl-C, seconds.
+_WAKE_S = 0.2
+
+
+@contextlib.contextmanager
+def held_interrupts() -> Iterator[threading.Event]:
+    """Hold Ctrl-C (and a SIGTERM that a handler turns into one) until a safe point.
+
+    A ``KeyboardInterrupt`` raised inside the executor's own bookkeeping
+    (``submit``, ``wait``) can leave its shutdown waiting forever. While this
+    context is open, the first signal only sets the event it yields; the run
+    raises ``KeyboardInterrupt`` itself at its next check. A second signal
+    raises at once, for a user who will not wait. Outside the main thread
+    (where signals cannot be handled) the event is never set.
+
+    Yields
+    ------
+    threading.Event
+        Set when a signal has been held.
+    """
+    held = threading.Event()
+    if threading.current_thread() is not threading.main_thread():
+        yield held
+        return
+
+    def hold(signum: int, frame: Any) -> None:
+        if held.is_set():
+            raise KeyboardInterrupt
+        held.set()
+
+    previous = {}
+    # Only signals that would raise KeyboardInterrupt are held: an ignored
+    # Ctrl-C stays ignored, and a SIGTERM without a handler still ends the process.
+    if signal.getsignal(signal.SIGINT) is signal.default_int_handler:
+        previous[signal.SIGINT] = signal.signal(signal.SIGINT, hold)
+    if callable(signal.getsignal(signal.SIGTERM)):
+        previous[signal.SIGTERM] = signal.signal(signal.SIGTERM, hold)
+    try:
+        yield held
+    finally:
+        for signum, handler in previous.items():
+            signal.signal(signum, handler)
+
 
 def _run_backend(
-    paths: list[str], backend: Any, window: int, *, ordered: bool
+    paths: list[str],
+    backend: Any,
+    window: int,
+    *,
+    ordered: bool,
+    stop: threading.Event | None = None,
 ) -> Iterator[tuple[int, PhotoOutcome]]:
     """Outcomes of ``paths`` as (index, outcome): as they finish, or in order.
 
@@ -261,7 +310,8 @@ def _run_backend(
     pool breaks), the photos it may have been working on are tried again one
     at a time in a new pool: the one that breaks it again gets an error row.
     A backend that cannot go on (a lost scheduler) raises from ``check`` or
-    ``restart``.
+    ``restart``. When ``stop`` is set (:func:`held_interrupts`), the run
+    raises ``KeyboardInterrupt`` between photos, outside the backend's calls.
     """
     pending: dict[cf.Future[PhotoOutcome], int] = {}
     ready: dict[int, PhotoOutcome] = {}
@@ -280,12 +330,22 @@ def _run_backend(
             pending[backend.submit(paths[next_new])] = next_new
             next_new += 1
 
+    def held() -> None:
+        if stop is not None and stop.is_set():
+            raise KeyboardInterrupt
+
+    held()
     fill()
+    idle_since = time.monotonic()
     while pending:
-        done, _ = cf.wait(pending, timeout=_POLL_S, return_when=cf.FIRST_COMPLETED)
+        held()
+        done, _ = cf.wait(pending, timeout=_WAKE_S, return_when=cf.FIRST_COMPLETED)
         if not done:
-            backend.check()
+            if time.monotonic() - idle_since >= _POLL_S:
+                backend.check()
+                idle_since = time.monotonic()
             continue
+        idle_since = time.monotonic()
         broken = []
         finished: list[tuple[int, PhotoOutcome]] = []
         for future in done:

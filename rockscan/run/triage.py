@@ -51,7 +51,14 @@ from rockscan.io.report import (
     photo_key,
     report_format,
 )
-from rockscan.run.backends import _DaskBackend, _init_worker, _pool_work, _ProcessBackend, _run_backend
+from rockscan.run.backends import (
+    _DaskBackend,
+    _init_worker,
+    _pool_work,
+    _ProcessBackend,
+    _run_backend,
+    held_interrupts,
+)
 from rockscan.run.photo import PhotoOutcome, photo_outcome
 from rockscan.run.pipeline import ClassifyConfig
 from rockscan.run.provenance import novelty_weight, report_provenance
@@ -429,8 +436,9 @@ def _outcomes(
         )
     try:
         window = backend.slots * int(config.window or 4)
-        for _, outcome in _run_backend(todo, backend, window, ordered=ordered):
-            yield outcome
+        with held_interrupts() as stop:
+            for _, outcome in _run_backend(todo, backend, window, ordered=ordered, stop=stop):
+                yield outcome
     finally:
         backend.close()
 
