@@ -2,11 +2,12 @@
 
 Photos come from :mod:`scenes` (a generator independent of
 ``rockscan.core.render``, see its docstring for the conditions and the split) and
-from real photos shipped with scikit-image (every coin of ``coins()``, every
-single-coin crop at native resolution with a margin of a third of its
-diameter, and the cell of ``cell()`` inside its dark halo; the reference
-outlines are ``tests/data/coins_reference.png`` and ``cell_reference.png``,
-see docs/segmentation.md).
+from real photos that packages ship: every coin of scikit-image's ``coins()``,
+every single-coin crop at native resolution with a margin of a third of its
+diameter, the cell of ``cell()`` inside its dark halo, and every whole nucleus
+of mahotas' fluorescence micrograph ``nuclear.png``, with ``--all`` and as
+crops (the reference outlines are ``tests/data/coins_reference.png``,
+``cell_reference.png`` and ``nuclei_reference.png``, see docs/segmentation.md).
 
 Parts: ``dev`` (seeds 0-9999, textures from the top half of each source
 photo) is for tuning; ``heldout`` (seeds 100000+, textures from the bottom
@@ -74,8 +75,12 @@ from rockscan.core.errors import NoRockFoundError, RockscanError
 ROOT = Path(__file__).resolve().parents[1]
 COINS_REFERENCE = ROOT / "tests" / "data" / "coins_reference.png"
 CELL_REFERENCE = ROOT / "tests" / "data" / "cell_reference.png"
+NUCLEI_REFERENCE = ROOT / "tests" / "data" / "nuclei_reference.png"
 #: Real-photo conditions (part ``real``).
-REAL_CONDITIONS = ("coins-all", "coins-crops", "cell")
+REAL_CONDITIONS = ("coins-all", "coins-crops", "cell", "nuclei-all", "nuclei-crops")
+#: Truth label of pixels that are not scored (a real photo's objects cut by the
+#: frame or hidden by glare): a found region mostly on them is neither right nor wrong.
+UNSCORED = -1
 METHODS = ("rockscan", "otsu", "watershed", "grabcut")
 PARTS = ("dev", "heldout", "real")
 #: IoU a rock must reach to count as outlined; IoU a one-to-one match must exceed.
@@ -169,6 +174,26 @@ def score_crowd(found: NDArray[np.integer], truth: NDArray[np.integer]) -> Crowd
     merges = int(np.count_nonzero(holds_true.sum(axis=1) >= 2)) if n_true else 0
     splits = int(np.count_nonzero(holds_found.sum(axis=0) >= 2)) if n_found else 0
     return CrowdScore(n_true, n_found, matched, merges, splits)
+
+
+def scored_parts(
+    found: NDArray[np.integer], truth: NDArray[np.integer]
+) -> tuple[NDArray[np.int32], NDArray[np.int32]]:
+    """A scene's found regions and truth without what is not scored.
+
+    A found region at least half on ``UNSCORED`` pixels of the truth (an
+    object cut by the frame, or hidden by glare) is dropped; those pixels are
+    ground in the truth.
+    """
+    unscored = truth == UNSCORED
+    if not unscored.any():
+        return np.asarray(found, np.int32), np.asarray(truth, np.int32)
+    found = np.asarray(found, np.int32).copy()
+    sizes = np.bincount(found.ravel())
+    on = np.bincount(found[unscored], minlength=sizes.size)
+    dropped = np.flatnonzero(on >= 0.5 * np.maximum(sizes, 1))
+    found[np.isin(found, dropped[dropped > 0])] = 0
+    return found, np.maximum(truth, 0).astype(np.int32)
 
 
 def _dense(labels: NDArray[np.integer]) -> NDArray[np.int32]:
@@ -384,12 +409,47 @@ def cell_reference() -> NDArray[np.int32]:
     return _read_labels(CELL_REFERENCE)
 
 
+def nuclear_photo() -> NDArray[np.uint8]:
+    """The fluorescence micrograph of nuclei that mahotas ships (``demos/data/nuclear.png``), gray.
+
+    Read from mahotas' installed files without importing it (its compiled
+    parts are not needed).
+    """
+    import importlib.util
+
+    from PIL import Image
+
+    spec = importlib.util.find_spec("mahotas")
+    if spec is None or not spec.submodule_search_locations:
+        raise RuntimeError("the nuclei photo comes with mahotas: pip install mahotas (or rockscan[test])")
+    path = Path(spec.submodule_search_locations[0]) / "demos" / "data" / "nuclear.png"
+    return np.asarray(Image.open(path).convert("L"))
+
+
+def nuclei_reference() -> NDArray[np.int32]:
+    """Reference labels of the 40 whole nuclei of :func:`nuclear_photo`, ``UNSCORED``
+    where nuclei lie that cannot be outlined whole (see docs/segmentation.md)."""
+    labels = _read_labels(NUCLEI_REFERENCE)
+    labels[labels == 255] = UNSCORED
+    return labels
+
+
 def coin_crops() -> list[tuple[NDArray[np.uint8], NDArray[np.int32]]]:
     """Every coin cut out at native resolution with a margin of a third of its diameter."""
     from skimage import data
 
-    image = data.coins()
-    labels = coins_reference()
+    return _crops(data.coins(), coins_reference())
+
+
+def nuclei_crops() -> list[tuple[NDArray[np.uint8], NDArray[np.int32]]]:
+    """Every whole nucleus cut out at native resolution with a margin of a third of its diameter."""
+    return _crops(nuclear_photo(), np.maximum(nuclei_reference(), 0))
+
+
+def _crops(
+    image: NDArray[np.uint8], labels: NDArray[np.int32]
+) -> list[tuple[NDArray[np.uint8], NDArray[np.int32]]]:
+    """Each labelled object cut out with a margin of a third of its diameter, and its truth (label 1)."""
     out = []
     for k, sl in enumerate(ndi.find_objects(labels), start=1):
         r0, r1, c0, c1 = sl[0].start, sl[0].stop, sl[1].start, sl[1].stop
@@ -411,7 +471,9 @@ def photo(part: str, condition: str, index: int) -> tuple[NDArray, NDArray[np.in
             return data.coins(), coins_reference(), "all"
         if condition == "cell":
             return data.cell(), cell_reference(), "one"
-        image, truth = coin_crops()[index]
+        if condition == "nuclei-all":
+            return nuclear_photo(), nuclei_reference(), "all"
+        image, truth = (nuclei_crops() if condition == "nuclei-crops" else coin_crops())[index]
         return image, truth, "crop"
     seed = scenes.part_seeds(part, 1, index)[0]
     kind = scenes.CONDITION_KINDS[condition]
@@ -431,7 +493,9 @@ def photo(part: str, condition: str, index: int) -> tuple[NDArray, NDArray[np.in
 
 def photo_count(part: str, condition: str, n: int) -> int:
     if part == "real":
-        return len(coin_crops()) if condition == "coins-crops" else 1
+        if condition.endswith("-crops"):
+            return len(nuclei_crops() if condition == "nuclei-crops" else coin_crops())
+        return 1
     return n
 
 
@@ -459,7 +523,7 @@ def _score_one(task: tuple[str, str, int]) -> list[dict]:
         seconds = time.perf_counter() - start
         record = {"method": name, "part": part, "condition": condition, "index": index, "kind": kind}
         if kind == "all":
-            record.update(asdict(score_crowd(found, truth)))
+            record.update(asdict(score_crowd(*scored_parts(found, truth))))
         else:
             record.update(asdict(score_rock(found == 1, truth == 1)))
             record.update(lighter=rock_is_lighter(pixels, truth == 1))
@@ -795,6 +859,36 @@ def write_figures(directory: Path, part: str) -> list[Path]:
     return written
 
 
+def write_real_figure(path: Path) -> Path:
+    """Overlay of the nuclei photo: the reference, what is not scored, and rockscan's rocks with ``--all``."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    from skimage.measure import find_contours
+
+    image, truth = nuclear_photo(), nuclei_reference()
+    found, _ = _rockscan(image, "all")
+    fig, ax = plt.subplots(figsize=(8, 8 * image.shape[0] / image.shape[1]), dpi=100)
+    # The photo is dark (ground 22 of 255, most nuclei 35-60): shown stretched.
+    ax.imshow(np.clip((image.astype(float) - 18) / 60, 0, 1) ** 0.7, cmap="gray", vmin=0, vmax=1)
+    ax.contourf(truth == UNSCORED, [0.5, 1.5], colors="tab:blue", alpha=0.3)
+    for labels, color, width in ((np.maximum(truth, 0), "lime", 2.5), (found, "red", 1.2)):
+        for k in range(1, int(labels.max()) + 1):
+            for contour in find_contours((labels == k).astype(float), 0.5):
+                ax.plot(contour[:, 1], contour[:, 0], color=color, lw=width)
+    ax.set_title(
+        "mahotas' nuclear.png, --all (shown stretched): reference green, rockscan red, not scored blue",
+        fontsize=10,
+    )
+    ax.set_axis_off()
+    fig.tight_layout()
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path)
+    plt.close(fig)
+    return path
+
+
 def write_score_figure(records: list[dict], part: str, path: Path) -> Path | None:
     """How the segmentation score reads on a part's photos of one rock and crops:
     the share of right outlines (IoU >= 0.9) among those scored in each tenth,
@@ -929,6 +1023,8 @@ def main(argv: list[str] | None = None) -> int:
         shown = "heldout" if "heldout" in parts else parts[0] if parts[0] != "real" else "dev"
         written = write_figures(args.figures, shown)
         written.append(write_score_figure(records, shown, args.figures / "segment-score.png"))
+        if "real" in parts:
+            written.append(write_real_figure(args.figures / "segment-nuclei.png"))
         for path in written:
             if path is not None:
                 print(f"wrote {path}", file=sys.stderr)

@@ -392,9 +392,10 @@ def test_coin_reference_has_24_separate_round_coins():
         assert ndi.label(labels == region.label)[1] == 1
 
 
-def test_coin_crops_are_centred_with_a_third_of_a_diameter_of_margin():
-    crops = bench.coin_crops()
-    assert len(crops) == 24
+@pytest.mark.parametrize(("crops", "count"), [("coin_crops", 24), ("nuclei_crops", 40)])
+def test_crops_are_centred_with_a_third_of_a_diameter_of_margin(crops, count):
+    crops = getattr(bench, crops)()
+    assert len(crops) == count
     for image, truth in crops:
         assert image.shape == truth.shape and truth.max() == 1
         rows = np.flatnonzero(truth.any(axis=1))
@@ -404,6 +405,40 @@ def test_coin_crops_are_centred_with_a_third_of_a_diameter_of_margin():
         assert max(image.shape) <= round(5 * diameter / 3) + 2
         margins = (rows[0], image.shape[0] - 1 - rows[-1], cols[0], image.shape[1] - 1 - cols[-1])
         assert max(margins) >= diameter / 3 - 1
+
+
+def test_nuclei_reference_has_40_whole_nuclei_apart_from_what_is_not_scored():
+    from skimage.measure import regionprops
+
+    image, labels = bench.nuclear_photo(), bench.nuclei_reference()
+    assert image.shape == labels.shape == (1024, 1344) and image.dtype == np.uint8
+    nuclei = np.maximum(labels, 0)
+    assert nuclei.max() == 40 and set(np.unique(labels)) == {bench.UNSCORED, *range(41)}
+    for region in regionprops(nuclei):
+        assert 1000 < region.area < 9000
+        assert region.solidity > 0.95  # nuclei are convex; the reference's outline is their hull
+        r0, c0, r1, c1 = region.bbox
+        assert min(r0, c0, 1024 - r1, 1344 - c1) >= 3  # whole: none cut by the frame
+        assert ndi.label(nuclei == region.label)[1] == 1
+    # Every nucleus stands out of the ground's noise (the faintest by 3.7 of its
+    # standard deviations: 7 gray levels).
+    ground = image[labels == 0]
+    for k in range(1, 41):
+        assert np.median(image[nuclei == k]) > np.median(ground) + 3 * ground.std()
+
+
+def test_unscored_regions_are_dropped_and_unscored_truth_is_ground():
+    truth = np.zeros((20, 20), np.int32)
+    truth[2:8, 2:8] = 1
+    truth[10:18, 10:18] = bench.UNSCORED
+    found = np.zeros_like(truth)
+    found[2:8, 2:8] = 1
+    found[10:18, 9:18] = 2  # most of it on unscored pixels
+    found[12:18, 0:4] = 3  # on the ground: a false rock
+    kept, scored = bench.scored_parts(found, truth)
+    assert set(np.unique(kept)) == {0, 1, 3} and set(np.unique(scored)) == {0, 1}
+    crowd = bench.score_crowd(kept, scored)
+    assert (crowd.n_true, crowd.n_found, crowd.matched) == (1, 2, 1)
 
 
 def test_cell_reference_is_one_round_cell_inside_its_halo():
