@@ -48,17 +48,14 @@ def label_maxima(
     """The largest of ``values`` under each label ``0 .. count - 1``, at least 0
     (0 for a label with no pixels).
 
-    The same as ``np.maximum.at`` into zeros, at a third of its cost.
+    ``np.maximum.at`` into zeros: since numpy 1.25 it costs a fifth of
+    ``scipy.ndimage.maximum``, which sorts by label.
     """
-    from scipy import ndimage
-
-    # Values at or below 0 cannot raise a maximum that is at least 0; left
-    # out, they spare the sort by label (a distance map is mostly zeros).
+    out = np.zeros(count)
+    # Values at or below 0 cannot raise a maximum that is at least 0 (a distance map is mostly zeros).
     positive = values > 0
-    if not positive.any():
-        return np.zeros(count)
-    found = ndimage.maximum(values[positive], labels[positive], np.arange(count))
-    return np.maximum(np.asarray(found, dtype=np.float64), 0.0)
+    np.maximum.at(out, labels[positive], values[positive].astype(np.float64))
+    return out
 
 
 def bounding_box(mask: NDArray[np.bool_]) -> tuple[int, int, int, int] | None:
