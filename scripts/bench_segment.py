@@ -55,6 +55,7 @@ Run ``python scripts/bench_segment.py --help`` for options.
 from __future__ import annotations
 
 import argparse
+import functools
 import json
 import os
 import sys
@@ -446,6 +447,12 @@ def nuclei_crops() -> list[tuple[NDArray[np.uint8], NDArray[np.int32]]]:
     return _crops(nuclear_photo(), np.maximum(nuclei_reference(), 0))
 
 
+@functools.cache
+def _real_crops(condition: str) -> list[tuple[NDArray[np.uint8], NDArray[np.int32]]]:
+    """The crops of a real photo, cut once per process: a photo of the benchmark is one crop of them."""
+    return nuclei_crops() if condition == "nuclei-crops" else coin_crops()
+
+
 def _crops(
     image: NDArray[np.uint8], labels: NDArray[np.int32]
 ) -> list[tuple[NDArray[np.uint8], NDArray[np.int32]]]:
@@ -473,8 +480,8 @@ def photo(part: str, condition: str, index: int) -> tuple[NDArray, NDArray[np.in
             return data.cell(), cell_reference(), "one"
         if condition == "nuclei-all":
             return nuclear_photo(), nuclei_reference(), "all"
-        image, truth = (nuclei_crops() if condition == "nuclei-crops" else coin_crops())[index]
-        return image, truth, "crop"
+        image, truth = _real_crops(condition)[index]
+        return image.copy(), truth.copy(), "crop"
     seed = scenes.part_seeds(part, 1, index)[0]
     kind = scenes.CONDITION_KINDS[condition]
     if _CACHE_DIR is not None:
@@ -494,7 +501,7 @@ def photo(part: str, condition: str, index: int) -> tuple[NDArray, NDArray[np.in
 def photo_count(part: str, condition: str, n: int) -> int:
     if part == "real":
         if condition.endswith("-crops"):
-            return len(nuclei_crops() if condition == "nuclei-crops" else coin_crops())
+            return len(_real_crops(condition))
         return 1
     return n
 

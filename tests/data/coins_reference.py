@@ -51,7 +51,7 @@ from skimage.draw import polygon
 from skimage.feature import peak_local_max
 from skimage.filters import threshold_local
 from skimage.morphology import convex_hull_image
-from skimage.segmentation import watershed
+from skimage.segmentation import relabel_sequential, watershed
 
 #: Label of the nuclei that are not scored (cut by the frame, or under glare).
 UNSCORED = 255
@@ -329,16 +329,9 @@ def nuclei_reference(image: np.ndarray) -> np.ndarray:
     unscored = (fore | ndi.binary_dilation(unclear, iterations=3)) & ~ndi.binary_dilation(
         nuclei > 0, iterations=6
     )
-    nuclei = by_rows(_dense(nuclei))
+    nuclei = by_rows(relabel_sequential(nuclei)[0])
     nuclei[unscored] = UNSCORED
     return nuclei
-
-
-def _dense(labels: np.ndarray) -> np.ndarray:
-    values = np.unique(labels[labels > 0])
-    remap = np.zeros(labels.max() + 1, np.int32)
-    remap[values] = np.arange(1, len(values) + 1)
-    return remap[labels]
 
 
 if __name__ == "__main__":
