@@ -3,10 +3,11 @@
 from __future__ import annotations
 
 import numpy as np
+import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from rockscan.core.segment import _basin, _centre_basin, _colour_gradient, _core_basin
+from rockscan.core.segment import _basin, _centre_basin, _centre_part, _colour_gradient, _core_basin
 from rockscan.core.segment.split import opened as _opened
 from rockscan.core.segment.types import RockMask
 
@@ -45,6 +46,18 @@ def test_the_centre_basin_parts_a_rock_from_the_touching_neighbours_of_its_crop(
     basin = _centre_basin(_colour_gradient(image, np.dtype(np.float32)))
     assert basin is not None
     assert iou(basin, centre) > 0.9
+
+
+@pytest.mark.parametrize("speck", [0, 3])
+def test_the_otsu_part_under_the_centre_is_the_rock_round_a_speck_at_the_centre(speck):
+    # A dark rock on light ground with a light speck of its own texture at the
+    # frame's centre: the class under the centre is the rock's, not the speck's.
+    shape = (120, 140)
+    image, (rock,) = photo_of_domes(shape, [((60, 70), 35)])
+    rr, cc = np.mgrid[: shape[0], : shape[1]]
+    image[np.hypot(rr - 59.5, cc - 69.5) <= speck + 0.5] = 0.95
+    part = _centre_part(image, np.dtype(np.float32))
+    assert part is not None and iou(part, rock) > 0.95
 
 
 def test_the_core_basin_leaves_out_a_soft_cast_shadow():

@@ -1499,14 +1499,19 @@ def _centre_part(work: NDArray[np.generic], dtype: np.dtype) -> NDArray[np.bool_
     gray8 = cv2.GaussianBlur((gray * 255).astype(np.uint8), (5, 5), 0)
     _, binary = cv2.threshold(gray8, 0, 1, cv2.THRESH_BINARY + cv2.THRESH_OTSU)
     rows, cols = binary.shape
-    if not binary[rows // 2, cols // 2]:
+    # The centre is judged by a disk, not its one pixel, which may fall on a
+    # speck of the rock's own texture of the other class.
+    centre = _centre_disk((rows, cols))
+    if 2 * np.count_nonzero(binary[centre]) < np.count_nonzero(centre):
         binary = 1 - binary
     _, labels = cv2.connectedComponents(binary, connectivity=4)
-    region = _fill_holes(labels == labels[rows // 2, cols // 2])
-    for part in split_necks(region, 0.01 * rows * cols):
-        if part[rows // 2, cols // 2]:
-            return part
-    return region
+    under = labels[centre]
+    under = under[under > 0]
+    if under.size == 0:
+        return None
+    region = _fill_holes(labels == np.bincount(under).argmax())
+    parts = [part for part in split_necks(region, 0.01 * rows * cols) if part[centre].any()]
+    return max(parts, key=lambda part: np.count_nonzero(part[centre])) if parts else region
 
 
 def _colour_gradient(work: NDArray[np.generic], dtype: np.dtype) -> NDArray[np.float32]:
@@ -1558,13 +1563,17 @@ def _basin(
 
 def _centre_basin(gradient: NDArray[np.float32]) -> NDArray[np.bool_] | None:
     """The basin of a disk at the frame's centre (a crop is centred on its rock)."""
-    rows, cols = gradient.shape
-    yy, xx = np.ogrid[:rows, :cols]
-    radius = max(1.0, _WATERSHED_MARKER * min(rows, cols))
-    inner = (yy - (rows - 1) / 2) ** 2 + (xx - (cols - 1) / 2) ** 2 <= radius**2
     border = np.zeros(gradient.shape, bool)
     border[0, :] = border[-1, :] = border[:, 0] = border[:, -1] = True
-    return _basin(gradient, inner, border)
+    return _basin(gradient, _centre_disk(gradient.shape), border)
+
+
+def _centre_disk(shape: tuple[int, int]) -> NDArray[np.bool_]:
+    """A disk at the frame's centre, of radius ``_WATERSHED_MARKER`` of its shorter side."""
+    rows, cols = shape
+    yy, xx = np.ogrid[:rows, :cols]
+    radius = max(1.0, _WATERSHED_MARKER * min(rows, cols))
+    return (yy - (rows - 1) / 2) ** 2 + (xx - (cols - 1) / 2) ** 2 <= radius**2
 
 
 def _core_basin(gradient: NDArray[np.float32], rock: RockMask) -> NDArray[np.bool_] | None:
