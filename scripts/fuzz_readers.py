@@ -86,7 +86,20 @@ def photo_seeds() -> dict[str, bytes]:
         image.save(buffer, format=_format(name), **options.get(name, {}))
         seeds[name] = buffer.getvalue()
     seeds["rgb16.png"] = _png16(rgb)
+    # Colour TIFFs of floating-point samples, which Pillow cannot read and OpenCV decodes.
+    bgr = rgb[..., ::-1].astype(np.float32) / 255.0
+    seeds["float.tif"] = _tiff(bgr)
+    seeds["float-rgba.tif"] = _tiff(np.dstack([bgr, np.full(gray.shape, 0.8, np.float32)]))
     return seeds
+
+
+def _tiff(samples: np.ndarray) -> bytes:
+    """A TIFF of ``samples`` (BGR order) as OpenCV writes it."""
+    import cv2
+
+    ok, data = cv2.imencode(".tiff", samples)
+    assert ok
+    return data.tobytes()
 
 
 def library_seeds() -> dict[str, bytes]:

@@ -128,6 +128,148 @@ def test_palette_and_one_bit_photos_become_rgba_and_gray(tmp_path):
     np.testing.assert_array_equal(binary > 0, pixels[..., 0] > 128)
 
 
+# ---------------------------------------------------------------- TIFFs of wide samples
+
+
+def _tiff(samples: np.ndarray, *, order: str = "<", orientation: int = 1, size=None) -> bytes:
+    """An uncompressed classic TIFF of float32 RGB(A) ``samples`` (rows, cols, 3|4),
+    written by hand so that byte order and orientation can be chosen; ``size``
+    (rows, cols) puts that size in the directory and no pixels after it."""
+    rows, cols, spp = samples.shape if size is None else (*size, 3)
+    data = b"" if size is None else None
+    if size is None:
+        data = samples.astype(order + "f4").tobytes()
+    tags = [
+        (256, 4, 1, cols),
+        (257, 4, 1, rows),
+        (258, 3, spp, None),  # 32 bits a sample, stored after the directory
+        (259, 3, 1, 1),
+        (262, 3, 1, 2),
+        (273, 4, 1, None),  # the pixels' offset
+        (274, 3, 1, orientation),
+        (277, 3, 1, spp),
+        (278, 4, 1, rows),
+        (279, 4, 1, rows * cols * spp * 4),
+        (284, 3, 1, 1),
+        (339, 3, spp, None),  # IEEE floating point, stored after the directory
+    ]
+    directory = 8
+    extra = directory + 2 + 12 * len(tags) + 4
+    bits_at, format_at, pixels_at = extra, extra + 2 * spp, extra + 4 * spp
+    head = (b"II" if order == "<" else b"MM") + struct.pack(order + "HI", 42, directory)
+    body = struct.pack(order + "H", len(tags))
+    for tag, kind, count, value in tags:
+        value = {258: bits_at, 273: pixels_at, 339: format_at}.get(tag, value)
+        # Values that do not fit in the entry (a short per sample) are pointed to.
+        inline = kind == 3 and count * 2 <= 4
+        packed = struct.pack(order + ("H" if inline else "I"), min(value, 2**32 - 1))
+        body += struct.pack(order + "HHI", tag, kind, count) + packed.ljust(4, b"\0")
+    body += struct.pack(order + "I", 0)
+    body += struct.pack(order + "H" * spp, *[32] * spp) + struct.pack(order + "H" * spp, *[3] * spp)
+    return head + body + (data or b"")
+
+
+def test_a_colour_tiff_of_floating_point_samples_reads_as_16_bits_over_its_range(tmp_path):
+    # Pillow reads gray floating-point TIFFs only; OpenCV decodes colour ones. Values
+    # k/255 over [0, 1] become k * 257 exactly, as an 8-bit photo's 16-bit twin.
+    pixels = _photo("rgb", 8)
+    pixels[0, 0] = (0, 0, 255)
+    pixels[0, 1] = (255, 255, 255)
+    assert cv2.imwrite(str(tmp_path / "f.tif"), pixels[..., ::-1].astype(np.float32) / 255)
+    image = read_image(tmp_path / "f.tif")
+    assert image.pixels.dtype == np.uint16 and image.bit_depth == 16
+    np.testing.assert_array_equal(image.pixels, pixels.astype(np.uint16) * 257)
+    (tmp_path / "h.tif").write_bytes(_tiff(pixels.astype(np.float32) / 255, order=">"))
+    np.testing.assert_array_equal(read_image(tmp_path / "h.tif").pixels, image.pixels)
+
+
+def test_a_colour_tiff_of_32_bit_integers_and_one_with_alpha_read(tmp_path):
+    pixels = _photo("rgb", 8)
+    pixels[0, :2] = ((0, 0, 0), (255, 255, 255))
+    assert cv2.imwrite(str(tmp_path / "i.tif"), pixels[..., ::-1].astype(np.int32) * 1000)
+    np.testing.assert_array_equal(read_image(tmp_path / "i.tif").pixels, pixels.astype(np.uint16) * 257)
+    alpha = np.linspace(0.0, 1.0, pixels[..., 0].size, dtype=np.float32).reshape(pixels.shape[:2])
+    bgra = np.dstack([pixels[..., ::-1].astype(np.float32) / 255, alpha])
+    assert cv2.imwrite(str(tmp_path / "a.tif"), bgra)
+    image = read_image(tmp_path / "a.tif").pixels
+    assert image.shape == (*pixels.shape[:2], 4)
+    np.testing.assert_array_equal(image[..., :3], pixels.astype(np.uint16) * 257)
+    np.testing.assert_array_equal(image[..., 3], np.round(alpha * 65535).astype(np.uint16))
+
+
+@pytest.mark.parametrize("orientation", [1, 3, 6, 8])
+def test_a_floating_point_colour_tiff_is_turned_upright_by_its_orientation_tag(tmp_path, orientation):
+    upright = _photo("rgb", 8, rows=30, cols=52)
+    upright[0, :2] = ((0, 0, 0), (255, 255, 255))
+    stored = (
+        np.asarray(Image.fromarray(upright).transpose(_STORED[orientation])) if orientation != 1 else upright
+    )
+    (tmp_path / "o.tif").write_bytes(_tiff(stored.astype(np.float32) / 255, orientation=orientation))
+    image = read_image(tmp_path / "o.tif")
+    np.testing.assert_array_equal(image.pixels, upright.astype(np.uint16) * 257)
+    assert image.full_shape == upright.shape[:2]
+
+
+def test_a_floating_point_colour_tiff_is_reduced_and_classified(tmp_path, default_lib):
+    photo = render_photo(TEARDROP, RenderConfig(rows=240, cols=320, color=True, area_fraction=0.2), rng=5)
+    path = tmp_path / "f.tif"
+    assert cv2.imwrite(str(path), photo.pixels[..., ::-1].astype(np.float32) / 255)
+    reduced = read_image(path, max_side=100)
+    assert reduced.scale == 3 and reduced.pixels.shape == (80, 106, 3)
+    as_png = tmp_path / "f.png"
+    Image.fromarray(photo.pixels).save(as_png)
+    got, want = classify_path(path, default_lib), classify_path(as_png, default_lib)
+    assert got.ok and want.ok, (got.error, want.error)
+    # The same photo in 16 bits: the same rock, matched alike.
+    (a,), (b,) = got.rocks, want.rocks
+    assert a.match.nearest == b.match.nearest
+    np.testing.assert_allclose(a.centroid_xy, b.centroid_xy, atol=0.5)
+    assert abs((a.match.angle_deg - b.match.angle_deg + 180) % 360 - 180) < 2.0
+
+
+@pytest.mark.parametrize(
+    ("size", "message"),
+    [((20000, 20000), "larger than 200,000,000 pixels"), ((9000, 9000), "too large to decode")],
+)
+def test_a_floating_point_colour_tiff_too_large_is_refused_before_decoding(tmp_path, size, message):
+    # The directory alone says how large the photo is: no pixels follow it.
+    path = tmp_path / "big.tif"
+    path.write_bytes(_tiff(np.zeros((1, 1, 3)), size=size))
+    with pytest.raises(ImageReadError, match=message) as info:
+        read_image(path)
+    assert "\n" not in str(info.value)
+
+
+def test_the_size_of_a_big_tiff_is_read_from_its_directory(tmp_path):
+    from rockscan.io.photos import _tiff_header
+
+    # Big TIFF: version 43, 8-byte offsets and counts, entries of 20 bytes.
+    head = b"II" + struct.pack("<HHHQ", 43, 8, 0, 16) + struct.pack("<Q", 3)
+    entries = b"".join(
+        struct.pack("<HHQ", tag, kind, 1) + value
+        for tag, kind, value in [
+            (256, 4, struct.pack("<I", 30).ljust(8, b"\0")),
+            (257, 16, struct.pack("<Q", 20)),
+            (274, 3, struct.pack("<H", 6).ljust(8, b"\0")),
+        ]
+    )
+    (tmp_path / "b.tif").write_bytes(head + entries + struct.pack("<Q", 0))
+    header = _tiff_header(tmp_path / "b.tif")
+    assert (header.rows, header.cols, header.orientation) == (20, 30, 6)
+    assert header.orientation_at == 16 + 8 + 2 * 20 + 12
+    assert header.order == "<"
+    (tmp_path / "no.tif").write_bytes(b"II" + struct.pack("<H", 44) + bytes(12))
+    assert _tiff_header(tmp_path / "no.tif") is None
+
+
+def test_a_floating_point_colour_tiff_with_nan_is_refused(tmp_path):
+    samples = np.full((20, 30, 3), 0.5, np.float32)
+    samples[3, 4, 1] = np.nan
+    assert cv2.imwrite(str(tmp_path / "n.tif"), samples)
+    with pytest.raises(ImageReadError, match="non-finite"):
+        read_image(tmp_path / "n.tif")
+
+
 # ---------------------------------------------------------------- EXIF orientation
 
 # Pillow's transpose for each EXIF orientation (stored -> upright), and its inverse.

@@ -4,7 +4,10 @@ Pillow reads every format the interface names, reports truncated files as
 errors instead of returning half an image, and gives the EXIF orientation.
 Pillow keeps only 8 bits of a 16-bit colour photo, so those are decoded again by
 OpenCV once Pillow has checked the file whole (OpenCV would print its decoder's
-complaints about a broken file to the terminal instead of raising).
+complaints about a broken file to the terminal instead of raising). Pillow
+cannot read a colour TIFF of 32-bit integer or floating-point samples at all:
+OpenCV decodes those, with its messages kept quiet, and they are scaled to 16
+bits over their range as Pillow's gray ones are.
 
 Large photos are reduced while decoding, by an integer factor ``k``: JPEG by
 the decoder's DCT scaling, other formats by averaging ``k x k`` blocks. Reduced
@@ -88,7 +91,9 @@ class ImageData:
 
 
 def read_image(path: str | os.PathLike[str], *, max_side: int | None = None) -> ImageData:
-    """Read a photo: PNG, JPEG, TIFF or BMP; gray, RGB or RGBA; 8 or 16 bits.
+    """Read a photo: PNG, JPEG, TIFF or BMP; gray, RGB or RGBA; 8 or 16 bits, or a
+    TIFF of 32-bit integer or floating-point samples (scaled to 16 bits over the
+    range of its gray or colour samples; an alpha in [0, 1] as it stands).
 
     Parameters
     ----------
@@ -114,7 +119,9 @@ def read_image(path: str | os.PathLike[str], *, max_side: int | None = None) -> 
     ------
     ImageReadError
         If the file is missing, a folder, empty, truncated or corrupt, not a
-        PNG, JPEG, TIFF or BMP, unreadable, or larger than 200 million pixels;
+        PNG, JPEG, TIFF or BMP, unreadable, larger than 200 million pixels, a
+        TIFF of wide colour samples larger than ``MAX_DEEP_BYTES``, or holds
+        non-finite values;
         the message is one line that starts with the path.
     ParameterError
         If ``max_side`` is not a positive number.
@@ -209,12 +216,146 @@ def _decode(
     except (Image.DecompressionBombError, Image.DecompressionBombWarning):
         raise ImageReadError(f"{path}: photo is larger than {MAX_PIXELS:,} pixels") from None
     except UnidentifiedImageError:
-        raise ImageReadError(f"{path}: not a supported image ({_SUPPORTED})") from None
+        header = _tiff_header(path)
+        if header is None:
+            raise ImageReadError(f"{path}: not a supported image ({_SUPPORTED})") from None
+        # Pillow reads gray floating-point TIFFs but not colour ones, nor 32-bit
+        # integer colour: OpenCV decodes those (and tells a broken one apart).
+        return _decode_wide_tiff(path, header, max_side)
     except MemoryError:
         raise ImageReadError(f"{path}: not enough memory to decode this photo") from None
     except _DECODE_ERRORS as exc:
         raise ImageReadError(f"{path}: image is truncated or corrupt ({_first_line(exc)})") from None
     return pixels, factor, decoded, orientation, (full_rows, full_cols), bit_depth, deep_color
+
+
+@dataclass(frozen=True)
+class _TiffHeader:
+    """What the first image directory of a TIFF says of its pixels."""
+
+    rows: int
+    cols: int
+    samples: int
+    bits: int
+    orientation: int
+    #: Where the orientation's value lies in the file, and its byte order.
+    orientation_at: int | None = None
+    order: str = "<"
+
+
+#: TIFF tags read from the first directory: size, bits and samples, orientation.
+_TIFF_TAGS = {256: "cols", 257: "rows", 258: "bits", 277: "samples", 274: "orientation"}
+#: Sizes of TIFF field types: SHORT, LONG, LONG8.
+_TIFF_INTS = {3: ("H", 2), 4: ("I", 4), 16: ("Q", 8)}
+#: Classic (42) and big (43) TIFF: how entries are counted, how offsets are
+#: stored, and where the header keeps the first directory's offset.
+_TIFF_LAYOUTS = {42: ("H", "I", 4), 43: ("Q", "Q", 8)}
+
+
+def _tiff_header(path: Path) -> _TiffHeader | None:
+    """The first directory of a classic or big TIFF, or None if the file is no TIFF."""
+    try:
+        with open(path, "rb") as fh:
+            head = fh.read(16)
+            order = {b"II": "<", b"MM": ">"}.get(head[:2])
+            if order is None or len(head) < 16:
+                return None
+            version = struct.unpack(order + "H", head[2:4])[0]
+            if version not in _TIFF_LAYOUTS:
+                return None
+            # Classic TIFF counts entries in 2 bytes and points in 4, big TIFF in 8 and 8.
+            count_code, wide, first = _TIFF_LAYOUTS[version]
+            width, count_size = struct.calcsize(wide), struct.calcsize(count_code)
+            offset = struct.unpack(order + wide, head[first : first + width])[0]
+            fh.seek(offset)
+            (count,) = struct.unpack(order + count_code, fh.read(count_size))
+            entry_size = 4 + 2 * width
+            start = offset + count_size
+            entries = fh.read(min(count, 4096) * entry_size)
+            found: dict = {"samples": 1, "bits": 8, "orientation": 1, "order": order}
+            for k in range(len(entries) // entry_size):
+                entry = entries[k * entry_size : (k + 1) * entry_size]
+                tag, kind = struct.unpack(order + "HH", entry[:4])
+                if tag not in _TIFF_TAGS or kind not in _TIFF_INTS:
+                    continue
+                code, size = _TIFF_INTS[kind]
+                n, field = struct.unpack(order + wide, entry[4 : 4 + width])[0], entry[4 + width :]
+                if n * size > width:
+                    # The values lie elsewhere (bits of several samples): the first is enough.
+                    fh.seek(struct.unpack(order + wide, field)[0])
+                    field = fh.read(size)
+                elif tag == 274 and size == 2:
+                    found["orientation_at"] = start + k * entry_size + 4 + width
+                found[_TIFF_TAGS[tag]] = struct.unpack(order + code, field[:size])[0]
+    except (OSError, struct.error):
+        return None
+    if "rows" not in found or "cols" not in found:
+        return None
+    return _TiffHeader(**found)
+
+
+def _decode_wide_tiff(
+    path: Path, header: _TiffHeader, max_side: int | None
+) -> tuple[NDArray[np.uint16], int, int, int, tuple[int, int], int, bool]:
+    """A TIFF of floating-point or 32-bit samples, decoded by OpenCV and scaled
+    to 16 bits over the range of its colour samples (as Pillow's gray ones are;
+    alpha in [0, 1] as it stands); the tuple of :func:`_decode`."""
+    import cv2
+
+    rows, cols = header.rows, header.cols
+    if rows * cols > MAX_PIXELS:
+        raise ImageReadError(f"{path}: photo is larger than {MAX_PIXELS:,} pixels")
+    decoded_bytes = rows * cols * max(1, header.samples) * max(1, header.bits // 8)
+    if decoded_bytes > MAX_DEEP_BYTES:
+        raise ImageReadError(
+            f"{path}: a {header.bits}-bit colour TIFF of {cols}x{rows} pixels is too large to decode "
+            f"(at most {MAX_DEEP_BYTES // 2**20} MiB of samples; save it with 8 or 16 bits a sample)"
+        )
+    data = np.fromfile(path, dtype=np.uint8)
+    if header.orientation_at is not None and header.orientation_at + 2 <= data.size:
+        # Some OpenCV releases turn a TIFF upright as they decode it, some do not:
+        # it decodes the stored pixels, and the tag is applied here, as for any photo.
+        data[header.orientation_at : header.orientation_at + 2] = np.frombuffer(
+            struct.pack(header.order + "H", 1), np.uint8
+        )
+    with _quiet_decoders():
+        arr = cv2.imdecode(data, cv2.IMREAD_UNCHANGED)
+    del data
+    if arr is None or arr.size == 0:
+        raise ImageReadError(f"{path}: not a supported image ({_SUPPORTED})")
+    if arr.dtype not in (np.float32, np.float64):
+        arr = arr.astype(np.float32)
+    factor = _reduction((cols, rows), max_side)
+    arr = _reduce(arr, factor)
+    if not np.all(np.isfinite(arr)):
+        raise ImageReadError(f"{path}: image holds non-finite values")
+    orientation = header.orientation if header.orientation in range(1, 9) else 1
+    return _wide_to_16(arr), factor, 1, orientation, (rows, cols), 16, False
+
+
+def _wide_to_16(arr: NDArray[np.floating]) -> NDArray[np.uint16]:
+    """OpenCV's gray, gray + alpha, BGR or BGRA samples as 16-bit gray or RGB(A)."""
+    if arr.ndim == 3 and arr.shape[2] == 1:
+        arr = arr[..., 0]
+    alpha = None
+    if arr.ndim == 3 and arr.shape[2] in (2, 4):
+        arr, alpha = arr[..., :-1], arr[..., -1]
+    lo, hi = float(arr.min()), float(arr.max())
+    colour = np.round((arr - lo) / (hi - lo if hi > lo else 1.0) * 65535).astype(np.uint16)
+    if colour.ndim == 3:
+        colour = colour[..., 2::-1] if colour.shape[2] == 3 else np.repeat(colour, 3, axis=2)
+    if alpha is None:
+        return np.ascontiguousarray(colour)
+    a_lo, a_hi = float(alpha.min()), float(alpha.max())
+    if a_lo >= 0.0 and a_hi <= 1.0:
+        opacity = alpha
+    elif a_hi > a_lo:
+        opacity = (alpha - a_lo) / (a_hi - a_lo)
+    else:
+        opacity = np.ones_like(alpha)
+    if colour.ndim == 2:
+        colour = np.repeat(colour[..., None], 3, axis=2)
+    return np.dstack([colour, np.round(opacity * 65535).astype(np.uint16)])
 
 
 def _check_file(path: Path) -> None:
