@@ -1492,7 +1492,8 @@ _GRABCUT_ITERATIONS = 3
 
 
 def _centre_part(work: NDArray[np.generic], dtype: np.dtype) -> NDArray[np.bool_] | None:
-    """The Otsu class under the frame's centre, holes filled, cut at necks from touching neighbours."""
+    """The Otsu class under the frame's centre (most of a disk there), holes filled,
+    cut at necks from touching neighbours; None when no part of it covers the disk."""
     import cv2
 
     gray = to_gray(work) if work.ndim == 3 else _unit(work, dtype)
