@@ -216,6 +216,37 @@ def test_dash_misuse_is_a_usage_error(args, stdin, message):
     assert result.exit_code == 2 and message in result.stderr
 
 
+def test_dash_refuses_a_photo_piped_in_for_its_paths(rendered):
+    data = Path(rendered["teardrop"][0]).read_bytes()
+    result = run("-", input=data)
+    assert result.exit_code == 2 and "holds binary data" in result.stderr
+
+
+def _non_utf8_copy(source: str, folder: Path) -> bytes:
+    """A copy of ``source`` under a name whose bytes are not UTF-8 (Latin-1 'roché.png')."""
+    name = os.path.join(os.fsencode(folder), b"roch\xe9.png")
+    try:
+        with open(name, "wb") as fh:
+            fh.write(Path(source).read_bytes())
+    except (OSError, UnicodeError):
+        pytest.skip("this file system takes only UTF-8 names")
+    return name
+
+
+def test_a_name_not_in_the_locales_encoding_is_classified_and_printed_escaped(rendered, tmp_path):
+    # A strict UTF-8 terminal, as under a UTF-8 locale; the name arrives as an
+    # argument and on standard input, and its bytes still name the file.
+    name = _non_utf8_copy(rendered["teardrop"][0], tmp_path)
+    env = {**os.environ, "PYTHONIOENCODING": "utf-8:strict"}
+    command = [os.fsencode(sys.executable), b"-m", b"rockscan", b"classify"]
+    for args, stdin in (([name], b""), ([b"--json", b"-"], name + b"\n")):
+        done = subprocess.run(command + args, input=stdin, capture_output=True, env=env, check=False)
+        assert done.returncode == 0, done.stderr.decode(errors="replace")
+        assert b"Traceback" not in done.stderr
+        out = done.stdout.decode("utf-8")
+        assert "teardrop" in out and "roch\\udce9.png" in out
+
+
 # ---------------------------------------------------------------- sizes
 
 

@@ -186,7 +186,16 @@ def _expand_stdin(photos: tuple[str, ...]) -> tuple[str, ...]:
             param_hint="PHOTO",
         )
     # read(), not line iteration: click 8.2's test runner ends iteration with EOFError.
-    read = [line.rstrip("\r") for line in stream.read().split("\n")]
+    # Bytes, decoded as the file system names files: a path that is not valid in
+    # the locale's encoding still names its file, and never raises.
+    raw = stream.buffer.read() if hasattr(stream, "buffer") else os.fsencode(stream.read())
+    if b"\0" in raw:
+        raise click.BadParameter(
+            "'-' reads photo paths from standard input, one a line, but it holds binary data "
+            "(a photo itself?): give the photo's path instead",
+            param_hint="PHOTO",
+        )
+    read = [line.rstrip("\r") for line in os.fsdecode(raw).split("\n")]
     read = [line for line in read if line.strip()]
     if not read:
         raise click.BadParameter("'-' given but standard input holds no photo paths", param_hint="PHOTO")

@@ -345,6 +345,10 @@ def main(verbose: int, quiet: bool) -> None:
     # in the last digit). Set before numpy loads; the user's own setting wins.
     for name in _BLAS_THREAD_VARIABLES:
         os.environ.setdefault(name, "1")
+    # A file name that is not valid in the locale's encoding (bytes from another
+    # system) is printed escaped, as standard error does, instead of ending the run.
+    if hasattr(sys.stdout, "reconfigure"):
+        sys.stdout.reconfigure(errors="backslashreplace")
     _configure_logging(-1 if quiet else verbose)
 
 
