@@ -239,12 +239,17 @@ def test_a_name_not_in_the_locales_encoding_is_classified_and_printed_escaped(re
     name = _non_utf8_copy(rendered["teardrop"][0], tmp_path)
     env = {**os.environ, "PYTHONIOENCODING": "utf-8:strict"}
     command = [os.fsencode(sys.executable), b"-m", b"rockscan", b"classify"]
+    outs = []
     for args, stdin in (([name], b""), ([b"--json", b"-"], name + b"\n")):
         done = subprocess.run(command + args, input=stdin, capture_output=True, env=env, check=False)
         assert done.returncode == 0, done.stderr.decode(errors="replace")
         assert b"Traceback" not in done.stderr
-        out = done.stdout.decode("utf-8")
-        assert "teardrop" in out and "roch\\udce9.png" in out
+        outs.append(done.stdout.decode("utf-8"))
+    table, json_lines = outs
+    assert "teardrop" in table and "\\udce9.png" in table
+    (record,) = lines(json_lines)
+    # JSON escapes the byte as the file system decoded it: the name reads back whole.
+    assert record["nearest"] == "teardrop" and os.fsencode(record["path"]) == name
 
 
 # ---------------------------------------------------------------- sizes
