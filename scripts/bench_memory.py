@@ -19,7 +19,9 @@ Photos (read as ``classify`` reads them, reduced for a 1024-pixel work size):
 
 * ``dark16-14000``: an all-dark 16-bit RGBA PNG of 14000 x 14000 (1.5 MB);
 * ``rgba-200MP``: an 8-bit RGBA PNG at the 200-million-pixel limit;
-* ``jpeg-8000``: an 8000 x 8000 JPEG.
+* ``jpeg-8000``: an 8000 x 8000 JPEG;
+* ``float-tiff-3800``, ``float-tiff-6000``: colour TIFFs of 32-bit float samples,
+  3800 x 3800 (173 MB, read) and 6000 x 6000 (432 MB, refused from its directory).
 
 Run ``python scripts/bench_memory.py --help``; the photos take a minute to write.
 """
@@ -156,6 +158,16 @@ def photo_cases(folder: Path) -> dict[str, Path]:
     Image.fromarray(small).resize((8000, 8000)).save(buffer, format="JPEG", quality=90)
     (folder / "big.jpg").write_bytes(buffer.getvalue())
     cases["jpeg-8000"] = folder / "big.jpg"
+    # Colour TIFFs of float samples, which OpenCV decodes: one within the budget, one beyond.
+    import cv2
+
+    for name, side in (("float-tiff-3800", 3800), ("float-tiff-6000", 6000)):
+        samples = np.full((side, side, 3), 0.8, np.float32)
+        cv2.circle(samples, (side // 2, side // 2), side // 4, (0.2, 0.25, 0.3), -1)
+        path = folder / f"{name}.tif"
+        cv2.imwrite(str(path), samples)
+        del samples
+        cases[name] = path
     return cases
 
 

@@ -120,8 +120,8 @@ def read_image(path: str | os.PathLike[str], *, max_side: int | None = None) -> 
     ImageReadError
         If the file is missing, a folder, empty, truncated or corrupt, not a
         PNG, JPEG, TIFF or BMP, unreadable, larger than 200 million pixels, a
-        TIFF of wide colour samples larger than ``MAX_DEEP_BYTES``, or holds
-        non-finite values;
+        TIFF of wide colour samples whose file and two copies of its samples
+        exceed ``MAX_DEEP_BYTES``, or holds non-finite values;
         the message is one line that starts with the path.
     ParameterError
         If ``max_side`` is not a positive number.
@@ -306,10 +306,13 @@ def _decode_wide_tiff(
     if rows * cols > MAX_PIXELS:
         raise ImageReadError(f"{path}: photo is larger than {MAX_PIXELS:,} pixels")
     decoded_bytes = rows * cols * max(1, header.samples) * max(1, header.bits // 8)
-    if decoded_bytes > MAX_DEEP_BYTES:
+    # OpenCV holds the file's bytes and decodes through a second buffer of the
+    # samples' size (a 412 MiB float RGB TIFF peaked at 1.28 GB).
+    if path.stat().st_size + 2 * decoded_bytes > MAX_DEEP_BYTES:
         raise ImageReadError(
             f"{path}: a {header.bits}-bit colour TIFF of {cols}x{rows} pixels is too large to decode "
-            f"(at most {MAX_DEEP_BYTES // 2**20} MiB of samples; save it with 8 or 16 bits a sample)"
+            f"(its file and two copies of its samples must fit in {MAX_DEEP_BYTES // 2**20} MiB; "
+            "save it with 8 or 16 bits a sample)"
         )
     data = np.fromfile(path, dtype=np.uint8)
     if header.orientation_at is not None and header.orientation_at + 2 <= data.size:
@@ -341,7 +344,12 @@ def _wide_to_16(arr: NDArray[np.floating]) -> NDArray[np.uint16]:
     if arr.ndim == 3 and arr.shape[2] in (2, 4):
         arr, alpha = arr[..., :-1], arr[..., -1]
     lo, hi = float(arr.min()), float(arr.max())
-    colour = np.round((arr - lo) / (hi - lo if hi > lo else 1.0) * 65535).astype(np.uint16)
+    # In place: the decoded samples are this function's own, and a full-size
+    # photo's temporaries would double its memory.
+    arr = np.subtract(arr, lo, out=arr if arr.base is None and arr.flags.writeable else None)
+    arr *= 65535 / (hi - lo if hi > lo else 1.0)
+    colour = np.rint(arr, out=arr).astype(np.uint16)
+    del arr
     if colour.ndim == 3:
         colour = colour[..., 2::-1] if colour.shape[2] == 3 else np.repeat(colour, 3, axis=2)
     if alpha is None:
