@@ -169,18 +169,38 @@ def _tiff(samples: np.ndarray, *, order: str = "<", orientation: int = 1, size=N
     return head + body + (data or b"")
 
 
-def test_a_colour_tiff_of_floating_point_samples_reads_as_16_bits_over_its_range(tmp_path):
+@pytest.mark.parametrize("order", ["<", ">"])
+def test_a_colour_tiff_of_floating_point_samples_reads_as_16_bits_over_its_range(tmp_path, order):
     # Pillow reads gray floating-point TIFFs only; OpenCV decodes colour ones. Values
     # k/255 over [0, 1] become k * 257 exactly, as an 8-bit photo's 16-bit twin.
+    # Written uncompressed by hand: OpenCV itself writes float colour as lossy
+    # LogLuv in some releases.
     pixels = _photo("rgb", 8)
     pixels[0, 0] = (0, 0, 255)
     pixels[0, 1] = (255, 255, 255)
-    assert cv2.imwrite(str(tmp_path / "f.tif"), pixels[..., ::-1].astype(np.float32) / 255)
+    (tmp_path / "f.tif").write_bytes(_tiff(pixels.astype(np.float32) / 255, order=order))
     image = read_image(tmp_path / "f.tif")
     assert image.pixels.dtype == np.uint16 and image.bit_depth == 16
     np.testing.assert_array_equal(image.pixels, pixels.astype(np.uint16) * 257)
-    (tmp_path / "h.tif").write_bytes(_tiff(pixels.astype(np.float32) / 255, order=">"))
-    np.testing.assert_array_equal(read_image(tmp_path / "h.tif").pixels, image.pixels)
+
+
+def test_floating_point_samples_at_float32s_limits_scale_without_overflow(tmp_path):
+    samples = np.zeros((20, 30, 3), np.float32)
+    samples[0, 0], samples[0, 1] = -3.0e38, 3.0e38
+    (tmp_path / "x.tif").write_bytes(_tiff(samples))
+    pixels = read_image(tmp_path / "x.tif").pixels
+    assert pixels[0, 0].tolist() == [0, 0, 0] and pixels[0, 1].tolist() == [65535] * 3
+    assert np.all(pixels[1:] == 32768)
+
+
+def test_a_colour_tiff_as_opencv_writes_floats_reads(tmp_path):
+    # Whatever OpenCV's release writes (uncompressed, or lossy LogLuv at about 1%).
+    pixels = _photo("rgb", 8)
+    assert cv2.imwrite(str(tmp_path / "f.tif"), pixels[..., ::-1].astype(np.float32) / 255)
+    got = read_image(tmp_path / "f.tif").pixels.astype(float)
+    want = pixels.astype(float) * 257
+    assert got.shape == want.shape
+    assert np.corrcoef(got.ravel(), want.ravel())[0, 1] > 0.99
 
 
 def test_a_colour_tiff_of_32_bit_integers_and_one_with_alpha_read(tmp_path):
@@ -265,7 +285,7 @@ def test_the_size_of_a_big_tiff_is_read_from_its_directory(tmp_path):
 def test_a_floating_point_colour_tiff_with_nan_is_refused(tmp_path):
     samples = np.full((20, 30, 3), 0.5, np.float32)
     samples[3, 4, 1] = np.nan
-    assert cv2.imwrite(str(tmp_path / "n.tif"), samples)
+    (tmp_path / "n.tif").write_bytes(_tiff(samples))
     with pytest.raises(ImageReadError, match="non-finite"):
         read_image(tmp_path / "n.tif")
 

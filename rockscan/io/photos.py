@@ -59,8 +59,19 @@ MAX_DEEP_BYTES = 512 * 2**20
 #: Reducing while decoding keeps the shorter side at least this many pixels.
 _MIN_SIDE = 8
 # Errors Pillow's decoders raise on broken files; anything they raise is the
-# file's fault, not a bug of the caller.
-_DECODE_ERRORS = (OSError, SyntaxError, ValueError, EOFError, struct.error, zlib.error, IndexError, KeyError)
+# file's fault, not a bug of the caller (a TIFF tag of the wrong type raises
+# TypeError as the pixels load).
+_DECODE_ERRORS = (
+    OSError,
+    SyntaxError,
+    ValueError,
+    EOFError,
+    struct.error,
+    zlib.error,
+    IndexError,
+    KeyError,
+    TypeError,
+)
 
 
 @dataclass(frozen=True, eq=False)
@@ -346,9 +357,12 @@ def _wide_to_16(arr: NDArray[np.floating]) -> NDArray[np.uint16]:
     lo, hi = float(arr.min()), float(arr.max())
     # In place: the decoded samples are this function's own, and a full-size
     # photo's temporaries would double its memory.
-    arr = np.subtract(arr, lo, out=arr if arr.base is None and arr.flags.writeable else None)
-    arr *= 65535 / (hi - lo if hi > lo else 1.0)
-    colour = np.rint(arr, out=arr).astype(np.uint16)
+    # Scaled before the offset is taken off: samples near float32's limits of
+    # both signs would overflow their difference.
+    scale = 65535 / (hi - lo) if hi > lo else 0.0
+    arr = np.multiply(arr, scale, out=arr if arr.base is None and arr.flags.writeable else None)
+    arr -= lo * scale
+    colour = np.rint(np.clip(arr, 0.0, 65535.0, out=arr), out=arr).astype(np.uint16)
     del arr
     if colour.ndim == 3:
         colour = colour[..., 2::-1] if colour.shape[2] == 3 else np.repeat(colour, 3, axis=2)
