@@ -282,6 +282,15 @@ def test_the_size_of_a_big_tiff_is_read_from_its_directory(tmp_path):
     assert _tiff_header(tmp_path / "no.tif") is None
 
 
+@pytest.mark.parametrize("samples", [2, 5])
+def test_a_floating_point_tiff_of_odd_samples_is_one_clear_error(tmp_path, samples):
+    path = tmp_path / "odd.tif"
+    path.write_bytes(_tiff(np.full((20, 30, samples), 0.5, np.float32)))
+    with pytest.raises(ImageReadError) as info:
+        read_image(path)
+    assert str(info.value).startswith(f"{path}: ") and "\n" not in str(info.value)
+
+
 def test_a_floating_point_colour_tiff_with_nan_is_refused(tmp_path):
     samples = np.full((20, 30, 3), 0.5, np.float32)
     samples[3, 4, 1] = np.nan

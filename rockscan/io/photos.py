@@ -321,7 +321,7 @@ def _decode_wide_tiff(
     # samples' size (a 412 MiB float RGB TIFF peaked at 1.28 GB).
     if path.stat().st_size + 2 * decoded_bytes > MAX_DEEP_BYTES:
         raise ImageReadError(
-            f"{path}: a {header.bits}-bit colour TIFF of {cols}x{rows} pixels is too large to decode "
+            f"{path}: a TIFF of {header.bits}-bit samples, {cols}x{rows} pixels, is too large to decode "
             f"(its file and two copies of its samples must fit in {MAX_DEEP_BYTES // 2**20} MiB; "
             "save it with 8 or 16 bits a sample)"
         )
@@ -337,6 +337,8 @@ def _decode_wide_tiff(
     del data
     if arr is None or arr.size == 0:
         raise ImageReadError(f"{path}: not a supported image ({_SUPPORTED})")
+    if arr.ndim == 3 and arr.shape[2] > 4:
+        raise ImageReadError(f"{path}: photos have at most 4 channels, this one has {arr.shape[2]}")
     if arr.dtype not in (np.float32, np.float64):
         arr = arr.astype(np.float32)
     factor = _reduction((cols, rows), max_side)
