@@ -21,7 +21,7 @@ Photos (read as ``classify`` reads them, reduced for a 1024-pixel work size):
 * ``rgba-200MP``: an 8-bit RGBA PNG at the 200-million-pixel limit;
 * ``jpeg-8000``: an 8000 x 8000 JPEG;
 * ``float-tiff-3800``, ``float-tiff-6000``: colour TIFFs of 32-bit float samples,
-  3800 x 3800 (173 MB, read) and 6000 x 6000 (432 MB, refused from its directory).
+  3800 x 3800 (165 MiB, read) and 6000 x 6000 (412 MiB, refused from its directory).
 
 Run ``python scripts/bench_memory.py --help``; the photos take a minute to write.
 """
