@@ -353,33 +353,38 @@ def _wide_to_16(arr: NDArray[np.floating]) -> NDArray[np.uint16]:
     """OpenCV's gray, gray + alpha, BGR or BGRA samples as 16-bit gray or RGB(A)."""
     if arr.ndim == 3 and arr.shape[2] == 1:
         arr = arr[..., 0]
-    alpha = None
-    if arr.ndim == 3 and arr.shape[2] in (2, 4):
-        arr, alpha = arr[..., :-1], arr[..., -1]
-    lo, hi = float(arr.min()), float(arr.max())
-    # In place: the decoded samples are this function's own, and a full-size
-    # photo's temporaries would double its memory.
+    alpha = arr.ndim == 3 and arr.shape[2] in (2, 4)
+    # In place, through views: the decoded samples are this function's own, and
+    # a full-size photo's temporaries would double its memory.
+    colour = arr[..., :-1] if alpha else arr
+    lo, hi = float(colour.min()), float(colour.max())
     # Scaled before the offset is taken off: samples near float32's limits of
     # both signs would overflow their difference.
     scale = 65535 / (hi - lo) if hi > lo else 0.0
-    arr = np.multiply(arr, scale, out=arr if arr.base is None and arr.flags.writeable else None)
-    arr -= lo * scale
-    colour = np.rint(np.clip(arr, 0.0, 65535.0, out=arr), out=arr).astype(np.uint16)
-    del arr
-    if colour.ndim == 3:
-        colour = colour[..., 2::-1] if colour.shape[2] == 3 else np.repeat(colour, 3, axis=2)
-    if alpha is None:
-        return np.ascontiguousarray(colour)
-    a_lo, a_hi = float(alpha.min()), float(alpha.max())
-    if a_lo >= 0.0 and a_hi <= 1.0:
-        opacity = alpha
-    elif a_hi > a_lo:
-        opacity = (alpha - a_lo) / (a_hi - a_lo)
-    else:
-        opacity = np.ones_like(alpha)
-    if colour.ndim == 2:
-        colour = np.repeat(colour[..., None], 3, axis=2)
-    return np.dstack([colour, np.round(opacity * 65535).astype(np.uint16)])
+    colour *= scale
+    colour -= lo * scale
+    if alpha:
+        opacity = arr[..., -1]
+        a_lo, a_hi = float(opacity.min()), float(opacity.max())
+        if a_lo >= 0.0 and a_hi <= 1.0:
+            opacity *= 65535
+        elif a_hi > a_lo:
+            opacity -= a_lo
+            opacity *= 65535 / (a_hi - a_lo)
+        else:
+            opacity[...] = 65535
+    samples = np.rint(np.clip(arr, 0.0, 65535.0, out=arr), out=arr).astype(np.uint16)
+    return _opencv_to_rgb(samples)
+
+
+def _opencv_to_rgb(arr: NDArray[np.generic]) -> NDArray[np.generic]:
+    """OpenCV's gray, gray + alpha, BGR or BGRA pixels as gray, RGBA, RGB or RGBA."""
+    if arr.ndim == 3 and arr.shape[2] == 2:
+        gray, alpha = arr[..., 0], arr[..., 1]
+        return np.dstack([gray, gray, gray, alpha])
+    if arr.ndim == 3:
+        return np.ascontiguousarray(arr[..., 2::-1] if arr.shape[2] == 3 else arr[..., [2, 1, 0, 3]])
+    return np.ascontiguousarray(arr)
 
 
 def _check_file(path: Path) -> None:
@@ -482,13 +487,7 @@ def _decode_deep(path: Path, factor: int) -> NDArray[np.uint16]:
     if arr is None or arr.dtype != np.uint16:
         raise ImageReadError(f"{path}: cannot decode this 16-bit colour photo")
     # Reduce first: reordering the channels copies the pixels.
-    arr = _reduce(arr, factor)
-    if arr.ndim == 3 and arr.shape[2] == 2:
-        gray, alpha = arr[..., 0], arr[..., 1]
-        return np.dstack([gray, gray, gray, alpha])
-    if arr.ndim == 3:
-        return np.ascontiguousarray(arr[..., 2::-1] if arr.shape[2] == 3 else arr[..., [2, 1, 0, 3]])
-    return arr
+    return _opencv_to_rgb(_reduce(arr, factor))
 
 
 def _orientation(im: Image.Image) -> int:
