@@ -7,7 +7,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from rockscan.core.segment import _basin, _centre_basin, _centre_part, _colour_gradient, _core_basin
+from rockscan.core.segment.cues import basin, centre_basin, centre_part, colour_gradient, core_basin
 from rockscan.core.segment.split import opened as _opened
 from rockscan.core.segment.types import RockMask
 
@@ -43,9 +43,9 @@ def test_the_centre_basin_parts_a_rock_from_the_touching_neighbours_of_its_crop(
     image, (centre, *_neighbours) = photo_of_domes(shape, [((60, 60), 30), ((60, 8), 23), ((8, 95), 26)])
     joined = image < 0.7
     assert iou(joined, centre) < 0.7
-    basin = _centre_basin(_colour_gradient(image, np.dtype(np.float32)))
-    assert basin is not None
-    assert iou(basin, centre) > 0.9
+    flooded = centre_basin(colour_gradient(image, np.dtype(np.float32)))
+    assert flooded is not None
+    assert iou(flooded, centre) > 0.9
 
 
 @pytest.mark.parametrize("speck", [0, 3])
@@ -56,7 +56,7 @@ def test_the_otsu_part_under_the_centre_is_the_rock_round_a_speck_at_the_centre(
     image, (rock,) = photo_of_domes(shape, [((60, 70), 35)])
     rr, cc = np.mgrid[: shape[0], : shape[1]]
     image[np.hypot(rr - 59.5, cc - 69.5) <= speck + 0.5] = 0.95
-    part = _centre_part(image, np.dtype(np.float32))
+    part = centre_part(image, np.dtype(np.float32))
     assert part is not None and iou(part, rock) > 0.95
 
 
@@ -75,8 +75,8 @@ def test_the_core_basin_leaves_out_a_soft_cast_shadow():
     joined = image < 0.7
     assert iou(joined, rock) < 0.8
     whole = RockMask(mask=joined, coverage=joined.astype(np.float32), origin_rowcol=(0, 0))
-    basin = _core_basin(_colour_gradient(image, np.dtype(np.float32)), whole)
-    assert basin is not None and iou(basin, rock) > 0.95
+    flooded = core_basin(colour_gradient(image, np.dtype(np.float32)), whole)
+    assert flooded is not None and iou(flooded, rock) > 0.95
 
 
 def test_opening_takes_off_pebbles_that_touch_the_rock():
@@ -96,10 +96,10 @@ def test_a_basin_over_flat_ground_is_no_outline():
     # Nothing but flat ground round the centre: the flood stops nowhere in particular.
     gradient = np.zeros((80, 100), np.float32)
     gradient[:, :3] = 1.0  # a rock cut by the frame, far from the centre
-    assert _centre_basin(gradient) is None
+    assert centre_basin(gradient) is None
     inner = np.zeros(gradient.shape, bool)
     inner[40, 50] = True
-    assert _basin(gradient, inner, np.zeros(gradient.shape, bool)) is None  # no ground marker
+    assert basin(gradient, inner, np.zeros(gradient.shape, bool)) is None  # no ground marker
 
 
 @settings(max_examples=25, deadline=None)

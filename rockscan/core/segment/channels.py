@@ -16,6 +16,28 @@ from rockscan.core.errors import ParameterError
 _LUMA = np.array([0.299, 0.587, 0.114], np.float32)
 
 
+def to_gray(pixels: NDArray[np.generic]) -> NDArray[np.float32]:
+    """Luminance in [0, 1] of a gray, RGB or RGBA photo of any integer or float type.
+
+    Parameters
+    ----------
+    pixels : (rows, cols) or (rows, cols, 3|4) ndarray
+        Integer photos are scaled by their type's maximum; float photos are
+        taken to be in [0, 1] and clipped.
+
+    Returns
+    -------
+    gray : (rows, cols) ndarray of float32
+        ``0.299 R + 0.587 G + 0.114 B`` (ITU-R BT.601).
+    """
+    arr = np.asarray(pixels)
+    if arr.ndim == 3 and arr.shape[2] in (3, 4):
+        arr = arr[..., :3].astype(np.float32) @ _LUMA
+    elif arr.ndim != 2:
+        raise ParameterError(f"a photo must be (rows, cols) or (rows, cols, 3|4), got shape {arr.shape}")
+    return _unit(arr, np.asarray(pixels).dtype)
+
+
 def _check_pixels(pixels: NDArray[np.generic]) -> NDArray[np.generic]:
     arr = np.asarray(pixels)
     if arr.ndim == 3 and arr.shape[2] == 1:

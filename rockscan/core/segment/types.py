@@ -173,6 +173,13 @@ class RockMask:
         """Area in working pixels."""
         return int(np.count_nonzero(self.mask))
 
+    def whole(self, shape: tuple[int, int]) -> NDArray[np.bool_]:
+        """The mask over a whole grid of ``shape`` (the working image it was outlined on)."""
+        whole = np.zeros(shape, bool)
+        r0, c0 = self.origin_rowcol
+        whole[r0 : r0 + self.mask.shape[0], c0 : c0 + self.mask.shape[1]] = self.mask
+        return whole
+
 
 @dataclass(frozen=True, eq=False)
 class Segmentation:
