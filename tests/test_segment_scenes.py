@@ -19,7 +19,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "scripts"))
 import bench_segment
 import scenes
 
-import rockscan.core.segment
+import rockscan.core.segment.scene
 from rockscan.core.segment import segment
 
 #: Photos per condition: the first seeds of the development part.
@@ -192,7 +192,7 @@ def test_a_rock_in_its_neighbours_region_under_their_outlines_level_is_outlined_
     # 22 -> 23 one to one.
     crowd = judged("crowded", index)
     assert crowd.matched >= matched, crowd
-    monkeypatch.setattr(rockscan.core.segment, "_left_over", lambda *args: None)
+    monkeypatch.setattr(rockscan.core.segment.scene, "_left_over", lambda *args: None)
     assert judged("crowded", index).matched < crowd.matched
 
 

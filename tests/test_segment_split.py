@@ -15,7 +15,7 @@ from hypothesis import strategies as st
 from skimage.draw import polygon2mask
 from test_segment import coverage, photo_of
 
-import rockscan.core.segment
+import rockscan.core.segment.scene
 import rockscan.run.pipeline
 from rockscan.core.outline import trace_outline
 from rockscan.core.segment import CONFIDENT_SCORE, SegmentConfig, segment
@@ -578,8 +578,8 @@ def test_with_all_a_light_rock_is_outlined_nearer_its_grounds_level(monkeypatch)
         return 1.0 - lost / (np.pi * radius**2)
 
     nearer = _best_iou(segment(pixels, all_rocks=True), truth)
-    assert nearer == pytest.approx(segment_iou(rockscan.core.segment.LIGHT_EDGE), abs=0.03)
-    monkeypatch.setattr(rockscan.core.segment, "LIGHT_EDGE", 0.5)
+    assert nearer == pytest.approx(segment_iou(rockscan.core.segment.scene.LIGHT_EDGE), abs=0.03)
+    monkeypatch.setattr(rockscan.core.segment.scene, "LIGHT_EDGE", 0.5)
     half_way = _best_iou(segment(pixels, all_rocks=True), truth)
     assert half_way == pytest.approx(segment_iou(0.5), abs=0.03)
     assert half_way < nearer - 0.04
