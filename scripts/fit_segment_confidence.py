@@ -47,7 +47,8 @@ CONDITIONS = [c for c, kind in scenes.CONDITION_KINDS.items() if kind != "all"]
 def _measure(task: tuple[str, int]) -> tuple[str, int, float, float, np.ndarray | None]:
     """Condition, index, the final outline's IoU, its score before, and the
     choice's confidence features (None when the whole pool did not decide)."""
-    from rockscan.core.segment import _chosen, _completed
+    from rockscan.core.segment import _chosen
+    from rockscan.core.segment.finish import completed
     from rockscan.core.segment.types import SegmentConfig
 
     condition, index = task
@@ -56,7 +57,7 @@ def _measure(task: tuple[str, int]) -> tuple[str, int, float, float, np.ndarray 
         found, choice, easy = _chosen(pixels, SegmentConfig())
     except NoRockFoundError:
         return condition, index, 0.0, 0.0, None
-    final, features = _completed(found, choice, pixels, easy=easy)
+    final, features = completed(found, choice, pixels, easy=easy)
     iou = bench.iou(bench.segmentation_labels(final, truth.shape) == 1, truth == 1)
     # Before: the choice model's largest probability, the first feature's log-odds.
     before = final.rocks[0].score if features is None else 1.0 / (1.0 + np.exp(-features[0]))

@@ -79,7 +79,8 @@ def truth_offsets(
 def _measure(task: tuple[str, int]) -> dict | None:
     """One development photo's rays: features, truth offsets and which rays count; None
     when no rock is found or the step would not run on it."""
-    from rockscan.core.segment import _chosen, _finished, _offset_inputs
+    from rockscan.core.segment import _chosen
+    from rockscan.core.segment.finish import finished, offset_inputs
     from rockscan.core.segment.offset import offset_features
     from rockscan.core.segment.types import SegmentConfig
 
@@ -91,8 +92,8 @@ def _measure(task: tuple[str, int]) -> dict | None:
         return None
     if choice is None or found.channel == "alpha":
         return None
-    found = _finished(found, pixels, full=not easy)
-    inputs = _offset_inputs(found, pixels)
+    found = finished(found, pixels, full=not easy)
+    inputs = offset_inputs(found, pixels)
     if inputs is None:
         return None
     window, gray, coverage, levels = inputs

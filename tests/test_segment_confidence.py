@@ -9,7 +9,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from rockscan.core.segment import _chosen, _completed, confidence, segment
+from rockscan.core.segment import _chosen, confidence, segment
 from rockscan.core.segment.choose import FEATURES, Ranking
 from rockscan.core.segment.confidence import (
     CHOICE_COUNT,
@@ -21,6 +21,7 @@ from rockscan.core.segment.confidence import (
     offset_evidence,
     outline_confidence,
 )
+from rockscan.core.segment.finish import completed
 from rockscan.core.segment.types import SegmentConfig
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "scripts"))
@@ -140,7 +141,7 @@ def test_a_rock_chosen_among_the_whole_pool_is_scored_by_the_fitted_model():
     pixels, _, _ = bench_segment.photo("dev", "shaded", 0)
     found, choice, easy = _chosen(pixels, SegmentConfig())
     assert choice is not None
-    final, features = _completed(found, choice, pixels, easy=easy)
+    final, features = completed(found, choice, pixels, easy=easy)
     np.testing.assert_array_equal(features[:CHOICE_COUNT], choice)
     rock = segment(pixels).rocks[0]
     np.testing.assert_array_equal(rock.mask, final.rocks[0].mask)

@@ -187,6 +187,7 @@ def test_an_easy_photo_keeps_the_outline_the_fast_path_gave(monkeypatch):
     # The fast path's outline stood out above every other region and steps
     # against the ground all round: the step does not run there.
     import rockscan.core.segment as segmentation
+    import rockscan.core.segment.finish as finish
     from rockscan.core.render import RenderConfig, render_photo
     from rockscan.io import default_spec_path, read_spec
 
@@ -198,6 +199,6 @@ def test_an_easy_photo_keeps_the_outline_the_fast_path_gave(monkeypatch):
     def never(*args, **kwargs):
         raise AssertionError("the offset step ran on the fast path")
 
-    monkeypatch.setattr(segmentation, "offsets_read", never)
-    monkeypatch.setattr(segmentation, "moved_by", never)
+    monkeypatch.setattr(finish, "offsets_read", never)
+    monkeypatch.setattr(finish, "moved_by", never)
     segmentation.segment(pixels)

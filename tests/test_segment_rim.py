@@ -188,6 +188,7 @@ def test_a_light_rock_without_a_rim_on_textured_ground_is_left_alone(monkeypatch
     # good part of the outline (23-39% of the rays on the development photos
     # it put right), so the outline stays.
     import rockscan.core.segment as segmentation
+    import rockscan.core.segment.finish as finish
     from rockscan.core.render import RenderConfig, render_photo
     from rockscan.io.data import default_spec_path
     from rockscan.io.spec import read_spec
@@ -196,7 +197,7 @@ def test_a_light_rock_without_a_rim_on_textured_ground_is_left_alone(monkeypatch
     photo = render_photo(params, RenderConfig(rows=768, cols=1024), rng=seed, name=name)
     assert photo.truth["rock_lighter"]
     grown = segmentation.segment(photo.pixels).rocks[0]
-    monkeypatch.setattr(segmentation, "rim_on", lambda gray, mask, region=None: mask)
+    monkeypatch.setattr(finish, "rim_on", lambda gray, mask, region=None: mask)
     alone = segmentation.segment(photo.pixels).rocks[0]
     assert alone.origin_rowcol == grown.origin_rowcol
     assert np.array_equal(alone.mask, grown.mask)

@@ -302,12 +302,12 @@ def test_a_light_rocks_dark_rim_is_in_its_outline(monkeypatch):
     # moved out to the rim's darkest line, it is outlined at 0.92. (The
     # learnt offsets, after the rim, would take the outline there too: they
     # are left out to judge the rim alone.)
-    import rockscan.core.segment as segmentation
+    import rockscan.core.segment.finish as finish
 
     assert judged("vignette-blur-jpeg", 30).iou >= 0.91
-    monkeypatch.setattr(segmentation, "moved_by", lambda read: None)
+    monkeypatch.setattr(finish, "moved_by", lambda read: None)
     assert judged("vignette-blur-jpeg", 30).iou >= 0.91
-    monkeypatch.setattr(segmentation, "rim_on", lambda gray, mask, region=None: mask)
+    monkeypatch.setattr(finish, "rim_on", lambda gray, mask, region=None: mask)
     assert judged("vignette-blur-jpeg", 30).iou < 0.9
 
 
@@ -319,8 +319,8 @@ def test_an_outline_short_of_a_small_rocks_edge_moves_out_by_the_learnt_offsets(
     # 0-199): small light rocks whose limb darkens into a blurred rim, their
     # outlines a pixel or two short all round (IoU 0.872 and 0.877) until
     # the learnt offsets move them out (0.955 and 0.924).
-    import rockscan.core.segment as segmentation
+    import rockscan.core.segment.finish as finish
 
     assert judged(condition, index).iou >= 0.92
-    monkeypatch.setattr(segmentation, "moved_by", lambda read: None)
+    monkeypatch.setattr(finish, "moved_by", lambda read: None)
     assert judged(condition, index).iou < 0.9

@@ -177,6 +177,7 @@ def test_an_easy_photo_keeps_the_outline_the_fast_path_gave(monkeypatch):
     # The fast path's outline stood out above every other region and steps
     # against the ground all round: it is not moved.
     import rockscan.core.segment as segmentation
+    import rockscan.core.segment.finish as finish
     from rockscan.core.render import RenderConfig, render_photo
     from rockscan.io import default_spec_path, read_spec
 
@@ -185,6 +186,6 @@ def test_an_easy_photo_keeps_the_outline_the_fast_path_gave(monkeypatch):
     _, _, easy = segmentation._chosen(pixels, segmentation.SegmentConfig())
     assert easy
     moved = segmentation.segment(pixels)
-    monkeypatch.setattr(segmentation, "SNAP_REACH", 0.0)
+    monkeypatch.setattr(finish, "SNAP_REACH", 0.0)
     kept = segmentation.segment(pixels)
     assert np.array_equal(moved.rocks[0].coverage, kept.rocks[0].coverage)

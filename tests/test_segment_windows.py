@@ -1,4 +1,4 @@
-"""Rocks outlined on one working grid, placed on a window of another (``rockscan.core.segment._placed``).
+"""Rocks outlined on one working grid, placed on a window of another (``rockscan.core.segment.finish.placed``).
 
 The choice's candidates come from detections outlined at different scales;
 comparing them needs each on the chosen rock's grid.
@@ -9,7 +9,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from rockscan.core.segment import _placed
+from rockscan.core.segment.finish import placed as place
 from rockscan.core.segment.types import RockMask
 
 
@@ -24,7 +24,7 @@ def disk(shape: tuple[int, int], centre: tuple[float, float], radius: float) -> 
 
 def test_on_its_own_grid_a_rock_lands_where_it_was():
     mask = disk((20, 30), (10, 15), 8)
-    placed = _placed(rock(mask, (12, 7)), (10, 40, 5, 45), (2.0, 2.0))
+    placed = place(rock(mask, (12, 7)), (10, 40, 5, 45), (2.0, 2.0))
     assert placed.shape == (30, 40)
     np.testing.assert_array_equal(placed[2:22, 2:32], mask)
     assert placed.sum() == mask.sum()
@@ -37,7 +37,7 @@ def test_from_another_grid_a_rock_keeps_its_place_and_size(factor):
     coarse = disk((int(80 / factor), int(100 / factor)), (40 / factor, 50 / factor), 12 / factor)
     ys, xs = np.nonzero(coarse)
     window = coarse[ys.min() : ys.max() + 1, xs.min() : xs.max() + 1]
-    placed = _placed(rock(window, (ys.min(), xs.min())), (20, 60, 30, 70), (1.0, 1.0), (factor, factor))
+    placed = place(rock(window, (ys.min(), xs.min())), (20, 60, 30, 70), (1.0, 1.0), (factor, factor))
     truth = disk((80, 100), (40, 50), 12)[20:60, 30:70]
     assert placed.shape == truth.shape
     assert (placed & truth).sum() / (placed | truth).sum() > 0.85
@@ -47,8 +47,8 @@ def test_from_another_grid_a_rock_keeps_its_place_and_size(factor):
 
 def test_a_rock_that_does_not_fit_the_window_is_not_placed():
     mask = disk((20, 20), (10, 10), 8)
-    assert _placed(rock(mask, (0, 0)), (5, 40, 0, 40), (1.0, 1.0)) is None
-    assert _placed(rock(mask, (25, 25)), (0, 40, 0, 40), (1.0, 1.0)) is None
+    assert place(rock(mask, (0, 0)), (5, 40, 0, 40), (1.0, 1.0)) is None
+    assert place(rock(mask, (25, 25)), (0, 40, 0, 40), (1.0, 1.0)) is None
     # On a grid twice as coarse, the same window holds only half as many of its pixels.
-    assert _placed(rock(mask, (12, 12)), (0, 40, 0, 40), (1.0, 1.0), (2.0, 2.0)) is None
-    assert _placed(rock(mask, (5, 5)), (0, 60, 0, 60), (1.0, 1.0), (2.0, 2.0)) is not None
+    assert place(rock(mask, (12, 12)), (0, 40, 0, 40), (1.0, 1.0), (2.0, 2.0)) is None
+    assert place(rock(mask, (5, 5)), (0, 60, 0, 60), (1.0, 1.0), (2.0, 2.0)) is not None

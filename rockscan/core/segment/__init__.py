@@ -179,7 +179,6 @@ outlined along the border.
 from __future__ import annotations
 
 import dataclasses
-import math
 from collections.abc import Iterator
 from dataclasses import dataclass
 
@@ -188,33 +187,18 @@ from numpy.typing import NDArray
 
 from rockscan.core._threads import one_blas_thread
 from rockscan.core.errors import NoRockFoundError
-from rockscan.core.segment.channels import (
-    _LUMA,
-    _at_scale,
-    _channels,
-    _check_pixels,
-    _pyramid,
-    _unit,
-    to_gray,
-)
+from rockscan.core.segment.channels import _at_scale, _channels, _check_pixels, _pyramid, _unit, to_gray
 from rockscan.core.segment.choose import choose_ranked, rank
-from rockscan.core.segment.confidence import confidence_features, offset_evidence, outline_confidence
+from rockscan.core.segment.confidence import confidence_features, outline_confidence
 from rockscan.core.segment.detect import _detect, _Detection
-from rockscan.core.segment.offset import OffsetsRead, moved_by, offsets_read
-from rockscan.core.segment.outliner import Outliner, cropped
-from rockscan.core.segment.pebbles import lobed, pebbles_off
-from rockscan.core.segment.rim import rim_on
+from rockscan.core.segment.finish import completed, placed, rock_window
+from rockscan.core.segment.outliner import Outliner
+from rockscan.core.segment.pebbles import lobed
 from rockscan.core.segment.scene import rocks_of_every_channel
 from rockscan.core.segment.score import WEIGHTS, OutlineEvidence, outline_score
-from rockscan.core.segment.shadow import MIN_AREA as SHADOW_MIN_AREA
-from rockscan.core.segment.shadow import Region, measured_region, shadow_left_out, shadow_off
-from rockscan.core.segment.slivers import slivers_off
-from rockscan.core.segment.snap import MARGIN as SNAP_MARGIN
-from rockscan.core.segment.snap import REACH as SNAP_REACH
-from rockscan.core.segment.snap import snapped
-from rockscan.core.segment.split import largest_part
+from rockscan.core.segment.shadow import shadow_left_out
 from rockscan.core.segment.stats import notch
-from rockscan.core.segment.trace import RING, RING_PIXELS, _fill_holes, _from_alpha
+from rockscan.core.segment.trace import _from_alpha
 from rockscan.core.segment.types import CONFIDENT_SCORE, RockMask, Segmentation, SegmentConfig
 
 __all__ = ["CONFIDENT_SCORE", "RockMask", "SegmentConfig", "Segmentation", "segment", "to_gray"]
@@ -254,104 +238,11 @@ def segment(
     found, choice, easy = _chosen(pixels, config, all_rocks=all_rocks)
     if all_rocks:
         return found
-    found, features = _completed(found, choice, pixels, easy=easy)
+    found, features = completed(found, choice, pixels, easy=easy)
     if features is None:
         return found
     main = dataclasses.replace(found.rocks[0], score=outline_confidence(features))
     return dataclasses.replace(found, rocks=(main, *found.rocks[1:]))
-
-
-def _completed(
-    found: Segmentation,
-    choice: NDArray[np.float64] | None,
-    pixels: NDArray[np.generic],
-    *,
-    easy: bool,
-) -> tuple[Segmentation, NDArray[np.float64] | None]:
-    """The chosen segmentation after steps 8-12 (``easy``: the fast path
-    took it), and for a rock chosen among the whole pool (``choice``, its
-    score's features from the choice) all of the score's features
-    (``confidence``), None otherwise."""
-    found = _finished(found, pixels, full=not easy)
-    if choice is None:
-        return found, None
-    before = _offsets_of(found, pixels)
-    moved = None if before is None else _offset_moved(found, before[0][0], before[1])
-    after = before if moved is None else _offsets_of(moved, pixels)
-    evidence = offset_evidence(*(None if r is None else r[1].on_usable for r in (before, after)))
-    return found if moved is None else moved, np.concatenate([choice, evidence])
-
-
-def _offsets_of(found: Segmentation, pixels: NDArray[np.generic]) -> tuple[_OnWindow, OffsetsRead] | None:
-    """What the offset step reads of the main rock (:func:`_offset_inputs`) and
-    the trees' offsets across its outline; None where they cannot be read."""
-    inputs = None if found.channel == "alpha" else _offset_inputs(found, pixels)
-    read = None if inputs is None else offsets_read(*inputs[1:], _scale(found))
-    return None if read is None else (inputs, read)
-
-
-def _finished(found: Segmentation, pixels: NDArray[np.generic], *, full: bool = True) -> Segmentation:
-    """The main rock with touching pebbles and slivers cut off and its edges seen to
-    (steps 8-11), step 11 only with ``full`` (off the fast path); an
-    outline an alpha channel gave stands as it is."""
-    if found.channel == "alpha":
-        return found
-    return _edges(_slivers_off(_pebbles_off(found)), pixels, snap=full)
-
-
-#: A window (rows r0:r1, cols c0:c1), the log brightness and a rock's coverage
-#: on it, and the rock's level, the ground's and the ground's spread.
-_OnWindow = tuple[
-    tuple[int, int, int, int], NDArray[np.float32], NDArray[np.float32], tuple[float, float, float]
-]
-
-
-def _scale(found: Segmentation) -> float:
-    """Photo pixels per pixel of the working grid."""
-    return 0.5 * (found.scale_rowcol[0] + found.scale_rowcol[1])
-
-
-def _offset_inputs(found: Segmentation, pixels: NDArray[np.generic]) -> _OnWindow | None:
-    """What the offset step reads of the main rock: its window on the working
-    grid, the photo's log brightness there, the rock's coverage placed on it,
-    and the rock's and the ground's levels with the ground's spread; None when
-    the rock does not fit its window or is too small to measure."""
-    rock = found.rocks[0]
-    # Read again, not taken over from the edge steps: the rim may have grown
-    # the rock, and its levels are read round the outline as it now is. It
-    # costs a millisecond or two, off the fast path only.
-    window, gray = _rock_window(found, pixels)
-    mask = _placed(rock, window, found.scale_rowcol)
-    if mask is None:
-        return None
-    region = measured_region(gray, mask, SHADOW_MIN_AREA)
-    if region is None:
-        return None
-    return window, gray, _main_coverage(rock, window, mask.shape), region[3]
-
-
-def _offset_moved(
-    found: Segmentation, window: tuple[int, int, int, int], read: OffsetsRead
-) -> Segmentation | None:
-    """The main rock with its outline moved by the offsets read across it on
-    ``window`` (``offset.moved_by``); None when nothing moved."""
-    moved = moved_by(read)
-    agreed = None if moved is None else _agreed(moved)
-    return None if agreed is None else _main_replaced(found, (window[0], window[2]), *agreed)
-
-
-def _agreed(moved: NDArray[np.float32]) -> tuple[NDArray[np.bool_], NDArray[np.float32]] | None:
-    """A moved coverage's rock (its largest piece past half-way, holes
-    filled) and the coverage made to agree with it: filled holes are rock,
-    anything else past half-way that is not the rock's one piece is ground;
-    None when nothing is past half-way."""
-    kept = largest_part(moved >= 0.5)
-    if kept is None:
-        return None
-    kept = _fill_holes(kept)
-    moved[kept & (moved < 0.5)] = 1.0
-    moved[~kept & (moved >= 0.5)] = 0.49
-    return kept, moved
 
 
 def _chosen(
@@ -393,14 +284,14 @@ def _without_shadow(
     # A choice already sure of its outline is not second-guessed.
     if probabilities.max() >= FAST_PROBABILITY:
         return found
-    window, gray = _rock_window(found, pixels)
-    outer = _placed(found.rocks[0], window, found.scale_rowcol)
+    window, gray = rock_window(found, pixels)
+    outer = placed(found.rocks[0], window, found.scale_rowcol)
     inners, which = [], []
     for k in np.argsort(-probabilities, kind="stable"):
         if k == index:
             continue
         other = candidates[k][0]
-        inner = _placed(other.rocks[0], window, found.scale_rowcol, other.scale_rowcol)
+        inner = placed(other.rocks[0], window, found.scale_rowcol, other.scale_rowcol)
         if inner is not None:
             inners.append(inner)
             which.append(int(k))
@@ -408,236 +299,6 @@ def _without_shadow(
         return found
     chosen = shadow_left_out(gray, outer, inners)
     return found if chosen is None else candidates[which[chosen]][0]
-
-
-def _pebbles_off(found: Segmentation) -> Segmentation:
-    """The main rock with the pebbles that touch it cut off (``pebbles.pebbles_off``).
-
-    The choice prefers outlines without pebbles, but the fast path and the
-    best candidate may still carry one: a pebble as dark as the rock joins
-    every cue's region. Cut off along its contact, it leaves the rock's own
-    edge as it was outlined. Other rocks of the segmentation are left as
-    they are.
-    """
-    rock = found.rocks[0]
-    return _main_cut(found, pebbles_off(rock.mask))
-
-
-def _slivers_off(found: Segmentation) -> Segmentation:
-    """The main rock with the thin slivers that run off it along a crevice
-    taken off (``slivers.slivers_off``); other rocks are left as they are."""
-    return _main_cut(found, slivers_off(found.rocks[0].mask))
-
-
-def _edges(found: Segmentation, pixels: NDArray[np.generic], *, snap: bool = True) -> Segmentation:
-    """The main rock with a cast shadow that joined it taken off
-    (``shadow.shadow_off``), with ``snap`` its outline moved to the steepest
-    edge beside it (``snap.snapped``), then a dark rim its outline left out
-    taken in (``rim.rim_on``).
-
-    All are judged on the photo's log brightness around the rock, brought
-    to the working grid the rock was outlined on, and on the rock's and the
-    ground's levels, read once for all. A rock cut, moved or grown keeps its score.
-    """
-    rock = found.rocks[0]
-    window, gray = _rock_window(found, pixels)
-    mask = _placed(rock, window, found.scale_rowcol)
-    region = measured_region(gray, mask, SHADOW_MIN_AREA)
-    if region is None:
-        return found
-    kept = shadow_off(gray, mask, region)
-    if kept is not mask:
-        (r0, _, c0, _), (o0, o1), (h, w) = window, rock.origin_rowcol, rock.mask.shape
-        found = _main_cut(found, kept[o0 - r0 : o0 - r0 + h, o1 - c0 : o1 - c0 + w])
-        rock = found.rocks[0]
-        window, gray = _rock_window(found, pixels)
-        mask = _placed(rock, window, found.scale_rowcol)
-        region = measured_region(gray, mask, SHADOW_MIN_AREA)
-        if region is None:
-            return found
-    if snap and found.channel == "luminance":
-        found, mask, region = _snapped(found, window, gray, mask, region)
-    grown = rim_on(gray, mask, region)
-    return found if grown is mask else _main_grown(found, window, mask, grown)
-
-
-def _snapped(
-    found: Segmentation,
-    window: tuple[int, int, int, int],
-    gray: NDArray[np.float32],
-    mask: NDArray[np.bool_],
-    region: Region,
-) -> tuple[Segmentation, NDArray[np.bool_], Region]:
-    """The main rock with its outline moved to the steepest edge beside it
-    (``snap.snapped``), its mask on ``window`` and its region; as they were
-    when nothing moved. The rock keeps its score."""
-    import cv2
-
-    rock = found.rocks[0]
-    (r0, r1, c0, c1), (o0, o1), (h, w) = window, rock.origin_rowcol, rock.mask.shape
-    reach = SNAP_REACH / (0.5 * (found.scale_rowcol[0] + found.scale_rowcol[1]))
-    # The rock's own window, wide enough for its outline to move and be read across.
-    pad = math.ceil(reach + SNAP_MARGIN) + 1
-    R0, R1, C0, C1 = max(r0, o0 - pad), min(r1, o0 + h + pad), max(c0, o1 - pad), min(c1, o1 + w + pad)
-    coverage = _main_coverage(rock, (R0, R1, C0, C1), (R1 - R0, C1 - C0))
-    _, _, _, (rock_level, ground_level, _) = region
-    # A blur spreads light, not its logarithm: the steepest change of the
-    # log brightness lies towards the dark side of an edge.
-    light = np.exp(gray[R0 - r0 : R1 - r0, C0 - c0 : C1 - c0])
-    moved = snapped(light, coverage, rock_level > ground_level, reach)
-    agreed = None if moved is None else _agreed(moved)
-    if agreed is None:
-        return found, mask, region
-    kept, moved = agreed
-    found = _main_replaced(found, (R0, C0), kept, moved)
-    mask = np.zeros(mask.shape, bool)
-    mask[R0 - r0 : R1 - r0, C0 - c0 : C1 - c0] = kept
-    mask8 = mask.view(np.uint8)
-    moments = cv2.moments(mask8, binaryImage=True)
-    area = moments["m00"]
-    return found, mask, (mask8, (moments["m01"] / area, moments["m10"] / area), area, region[3])
-
-
-def _main_grown(
-    found: Segmentation,
-    window: tuple[int, int, int, int],
-    mask: NDArray[np.bool_],
-    grown: NDArray[np.bool_],
-) -> Segmentation:
-    """The segmentation with its main rock (``mask`` on ``window``) grown to
-    ``grown``: what is added is rock in the coverage and the labels; other
-    rocks are left as they are."""
-    coverage = _main_coverage(found.rocks[0], window, mask.shape)
-    coverage[grown & ~mask] = 1.0
-    return _main_replaced(found, (window[0], window[2]), grown, coverage)
-
-
-def _main_coverage(
-    rock: RockMask, window: tuple[int, int, int, int], shape: tuple[int, int]
-) -> NDArray[np.float32]:
-    """A rock's coverage placed on a window (rows r0:r1, cols c0:c1) of its working grid."""
-    (r0, _, c0, _), (o0, o1), (h, w) = window, rock.origin_rowcol, rock.mask.shape
-    coverage = np.zeros(shape, np.float32)
-    coverage[o0 - r0 : o0 - r0 + h, o1 - c0 : o1 - c0 + w] = rock.coverage
-    return coverage
-
-
-def _main_replaced(
-    found: Segmentation, origin: tuple[int, int], mask: NDArray[np.bool_], coverage: NDArray[np.float32]
-) -> Segmentation:
-    """The segmentation with its main rock's mask and coverage replaced by
-    ``mask`` and ``coverage`` on a window from ``origin``, in the labels too;
-    other rocks are left as they are."""
-    r0, c0 = origin
-    main = cropped(dataclasses.replace(found.rocks[0], mask=mask, coverage=coverage, origin_rowcol=origin))
-    labels = found.labels.copy()
-    view = labels[r0 : r0 + mask.shape[0], c0 : c0 + mask.shape[1]]
-    view[~mask & (view == 1)] = 0
-    view[mask & (view == 0)] = 1
-    return dataclasses.replace(found, labels=labels, rocks=(main, *found.rocks[1:]))
-
-
-def _rock_window(
-    found: Segmentation, pixels: NDArray[np.generic]
-) -> tuple[tuple[int, int, int, int], NDArray[np.float32]]:
-    """The window of the working grid around the main rock (rows r0:r1, cols
-    c0:c1) with the ring its ground's level is read from, and the photo's log
-    brightness on it."""
-    rock = found.rocks[0]
-    h, w = rock.mask.shape
-    radius = math.sqrt(max(rock.area, 1) / math.pi)
-    pad = math.ceil(max(RING_PIXELS[1], RING[1] * radius)) + 2
-    rows, cols = found.labels.shape
-    o0, o1 = rock.origin_rowcol
-    window = (max(0, o0 - pad), min(rows, o0 + h + pad), max(0, o1 - pad), min(cols, o1 + w + pad))
-    gray = _working_gray(pixels, window, found.scale_rowcol)
-    return window, np.log(gray + np.float32(_LOG_FLOOR))
-
-
-def _placed(
-    rock: RockMask,
-    window: tuple[int, int, int, int],
-    scale_rowcol: tuple[float, float],
-    grid_scale_rowcol: tuple[float, float] | None = None,
-) -> NDArray[np.bool_] | None:
-    """A rock's mask on a window of a working grid (photo pixels per grid pixel
-    ``scale_rowcol``); None if it does not fit inside.
-
-    The rock may have been outlined on another grid (``grid_scale_rowcol``,
-    the same by default): each window pixel takes the value under its centre.
-    """
-    r0, r1, c0, c1 = window
-    (o0, o1), (h, w) = rock.origin_rowcol, rock.mask.shape
-    own = grid_scale_rowcol or scale_rowcol
-    # The rock's extent in window pixels (fractional when the grids differ).
-    top, left = o0 * own[0] / scale_rowcol[0], o1 * own[1] / scale_rowcol[1]
-    bottom, right = (o0 + h) * own[0] / scale_rowcol[0], (o1 + w) * own[1] / scale_rowcol[1]
-    if top < r0 - _FIT or left < c0 - _FIT or bottom > r1 + _FIT or right > c1 + _FIT:
-        return None
-    rows = np.floor((np.arange(r0, r1) + 0.5) * scale_rowcol[0] / own[0]).astype(np.int64) - o0
-    cols = np.floor((np.arange(c0, c1) + 0.5) * scale_rowcol[1] / own[1]).astype(np.int64) - o1
-    # The indices rise with the window's: the pixels over the rock are one
-    # block, filled by a gather of rows, then of columns (a 2-D fancy index
-    # would cost a hundred times more on the rock's own grid).
-    on_rows = np.flatnonzero((rows >= 0) & (rows < h))
-    on_cols = np.flatnonzero((cols >= 0) & (cols < w))
-    mask = np.zeros((r1 - r0, c1 - c0), bool)
-    if on_rows.size and on_cols.size:
-        block = rock.mask.take(rows[on_rows], axis=0).take(cols[on_cols], axis=1)
-        mask[on_rows[0] : on_rows[-1] + 1, on_cols[0] : on_cols[-1] + 1] = block
-    return mask
-
-
-#: How far, in pixels of the window's grid, a rock outlined on another grid
-#: may reach past the window's edge and still be placed on it (rounding).
-_FIT = 1.0
-
-
-def _working_gray(
-    pixels: NDArray[np.generic], window: tuple[int, int, int, int], scale_rowcol: tuple[float, float]
-) -> NDArray[np.float32]:
-    """Luminance in [0, 1] of a window (rows r0:r1, cols c0:c1) of the working
-    image, from the photo's pixels under it, reduced as the working image was
-    (exact halvings, then one resize) before the conversion to gray."""
-    import cv2
-
-    r0, r1, c0, c1 = window
-    sr, sc = scale_rowcol
-    photo = np.asarray(pixels)
-    if photo.ndim == 3 and photo.shape[2] == 1:
-        photo = photo[..., 0]
-    p0, p1 = math.floor(r0 * sr), min(photo.shape[0], max(math.floor(r0 * sr) + 1, round(r1 * sr)))
-    q0, q1 = math.floor(c0 * sc), min(photo.shape[1], max(math.floor(c0 * sc) + 1, round(c1 * sc)))
-    size = (c1 - c0, r1 - r0)
-    reduced, _ = _at_scale(_pyramid(photo[p0:p1, q0:q1], max(1, min(size))), max(sr, sc))
-    gray = _unit(reduced[..., :3].astype(np.float32) @ _LUMA if reduced.ndim == 3 else reduced, photo.dtype)
-    if gray.shape != size[::-1]:
-        gray = cv2.resize(gray, size, interpolation=cv2.INTER_LINEAR)
-    return gray
-
-
-#: Added to brightness in [0, 1] before its logarithm (ten levels of eight
-#: bits): near black, sensor noise and compression make ratios meaningless,
-#: and the logarithm would stretch a dark rock's texture into steps. On the
-#: development part any value from 0.008 to 0.08 gives the same outlines.
-_LOG_FLOOR = 0.04
-
-
-def _main_cut(found: Segmentation, kept: NDArray[np.bool_]) -> Segmentation:
-    """The segmentation with its main rock's mask cut to ``kept`` (a part of it, on its window).
-
-    What is cut goes from the coverage and the labels; other rocks are left as they are.
-    """
-    rock = found.rocks[0]
-    if kept is rock.mask:
-        return found
-    cut = rock.mask & ~kept
-    main = dataclasses.replace(rock, mask=kept, coverage=np.where(cut, 0.0, rock.coverage).astype(np.float32))
-    labels = found.labels.copy()
-    r0, c0 = rock.origin_rowcol
-    view = labels[r0 : r0 + cut.shape[0], c0 : c0 + cut.shape[1]]
-    view[cut & (view == 1)] = 0
-    return dataclasses.replace(found, labels=labels, rocks=(main, *found.rocks[1:]))
 
 
 #: The choice model's probability from which its choice is sure: among the
