@@ -209,9 +209,7 @@ def _detect(
 
 def _luminance_polarity(work: NDArray[np.generic], dtype: np.dtype, rock: RockMask) -> str:
     """Whether a rock found by its hue is lighter or darker than the ground around it."""
-    r0, c0 = rock.origin_rowcol
-    h, w = rock.mask.shape
-    lum = _Channel("luminance", True).values(_unit(work[r0 : r0 + h, c0 : c0 + w], dtype))
+    lum = _Channel("luminance", True).values(_unit(work[rock.window], dtype))
     outside = lum[~rock.mask]
     if outside.size == 0:
         return "light"

@@ -361,7 +361,6 @@ def _main_cut(found: Segmentation, kept: NDArray[np.bool_]) -> Segmentation:
     cut = rock.mask & ~kept
     main = dataclasses.replace(rock, mask=kept, coverage=np.where(cut, 0.0, rock.coverage).astype(np.float32))
     labels = found.labels.copy()
-    r0, c0 = rock.origin_rowcol
-    view = labels[r0 : r0 + cut.shape[0], c0 : c0 + cut.shape[1]]
+    view = labels[rock.window]
     view[cut & (view == 1)] = 0
     return dataclasses.replace(found, labels=labels, rocks=(main, *found.rocks[1:]))

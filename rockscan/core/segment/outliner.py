@@ -148,9 +148,7 @@ def assemble(
     rocks = sorted(rocks, key=lambda r: -r.area)
     labels = np.zeros(shape, np.int32)
     for index, rock in enumerate(rocks, start=1):
-        r0, c0 = rock.origin_rowcol
-        h, w = rock.mask.shape
-        view = labels[r0 : r0 + h, c0 : c0 + w]
+        view = labels[rock.window]
         view[rock.mask & (view == 0)] = index
     return Segmentation(
         labels=labels, rocks=tuple(rocks), scale_rowcol=scale_rowcol, polarity=polarity, channel=channel

@@ -255,9 +255,7 @@ def _two_rocks_parted(rocks: list[RockMask], outline: Outliner, found: Segmentat
         if index not in cuts:
             out.append(rock)
             continue
-        r0, c0 = rock.origin_rowcol
-        h, w = rock.mask.shape
-        half = cuts[index][r0 : r0 + h, c0 : c0 + w] & rock.mask
+        half = cuts[index][rock.window] & rock.mask
         out.extend(_pieces(rock, [rock.mask & ~half, half]))
     return out
 
@@ -319,9 +317,7 @@ FREE_SHARE = 0.8
 
 def _where_free(rock: RockMask, taken: NDArray[np.bool_]) -> RockMask | None:
     """The rock less what ``taken`` holds, if at least ``FREE_SHARE`` of it is free; else None."""
-    r0, c0 = rock.origin_rowcol
-    h, w = rock.mask.shape
-    free = ~taken[r0 : r0 + h, c0 : c0 + w]
+    free = ~taken[rock.window]
     if float(np.count_nonzero(rock.mask & free)) < FREE_SHARE * float(np.count_nonzero(rock.mask)):
         return None
     mask = largest_part(rock.mask & free)
@@ -379,9 +375,7 @@ def _cut(rock: RockMask, work: NDArray[np.generic], dtype: np.dtype) -> list[Roc
 
 def _work_window(work: NDArray[np.generic], rock: RockMask, dtype: np.dtype) -> NDArray[np.float32]:
     """The working image under a rock's window, in [0, 1] (colour or brightness)."""
-    r0, c0 = rock.origin_rowcol
-    h, w = rock.mask.shape
-    window = work[r0 : r0 + h, c0 : c0 + w]
+    window = work[rock.window]
     return _unit(np.ascontiguousarray(window[..., :3] if window.ndim == 3 else window), dtype)
 
 

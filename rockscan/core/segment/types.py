@@ -173,11 +173,16 @@ class RockMask:
         """Area in working pixels."""
         return int(np.count_nonzero(self.mask))
 
+    @property
+    def window(self) -> tuple[slice, slice]:
+        """Where the mask lies on the working grid: ``grid[rock.window]`` is under it."""
+        (r0, c0), (h, w) = self.origin_rowcol, self.mask.shape
+        return slice(r0, r0 + h), slice(c0, c0 + w)
+
     def whole(self, shape: tuple[int, int]) -> NDArray[np.bool_]:
         """The mask over a whole grid of ``shape`` (the working image it was outlined on)."""
         whole = np.zeros(shape, bool)
-        r0, c0 = self.origin_rowcol
-        whole[r0 : r0 + self.mask.shape[0], c0 : c0 + self.mask.shape[1]] = self.mask
+        whole[self.window] = self.mask
         return whole
 
 
