@@ -117,6 +117,25 @@ def test_alike_lobes_all_round_are_the_rocks_own_shape():
     assert pebbles_off(side).sum() < side.sum()
 
 
+def test_pebbles_all_round_a_rock_where_they_happen_to_lie_are_cut_off():
+    """Four pebbles whose directions from the rock's centre all but cancel
+    (resultant 0.1), at uneven angles (gaps spread by 0.37 of their mean):
+    pebbles, not lobes."""
+    rock = disk(100, 120, 45)
+    scattered = ring_of_lobes([0.0, 0.7, 2.9, 4.3])
+    assert iou(scattered, rock) < 0.93
+    assert iou(pebbles_off(scattered), rock) > 0.97
+    assert not lobed(scattered)
+
+
+@settings(max_examples=25, deadline=None)
+@given(count=st.integers(3, 12), turn=st.floats(0, 2 * np.pi))
+def test_alike_lobes_at_even_angles_are_left_alone_at_any_count_and_turn(count, turn):
+    lobes = ring_of_lobes([turn + 2 * np.pi * k / count for k in range(count)])
+    assert pebbles_off(lobes) is lobes
+    assert lobed(lobes)
+
+
 def test_stars_and_lobes_all_round_are_lobed():
     for mask in (star(5, 0.4), star(6, 0.35), star(4, 0.45), star(8, 0.4)):
         assert lobed(mask)

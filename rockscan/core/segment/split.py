@@ -628,17 +628,24 @@ def all_round(
     """Whether the labelled pieces lie all round the body: the unit vectors from
     the body's centre to theirs average to a resultant shorter than ``spread``
     (lobes or arms of the rock's own shape, not something joined on one side)."""
+    angles = piece_angles(labels, body, pieces)
+    return bool(abs(np.exp(1j * angles).mean()) < spread)
+
+
+def piece_angles(
+    labels: NDArray[np.integer], body: NDArray[np.bool_], pieces: NDArray[np.intp]
+) -> NDArray[np.float64]:
+    """The direction, in radians, from the body's centre to each labelled piece's centre."""
     rows, cols = np.indices(labels.shape)
     flat = labels.ravel()
     size = np.maximum(np.bincount(flat), 1)
     row_sums = np.bincount(flat, weights=rows.ravel())
     col_sums = np.bincount(flat, weights=cols.ravel())
     body_rows, body_cols = np.nonzero(body)
-    angles = np.arctan2(
+    return np.arctan2(
         row_sums[pieces] / size[pieces] - body_rows.mean(),
         col_sums[pieces] / size[pieces] - body_cols.mean(),
     )
-    return bool(abs(np.exp(1j * angles).mean()) < spread)
 
 
 def cut_back(
