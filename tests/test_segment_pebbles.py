@@ -128,6 +128,18 @@ def test_pebbles_all_round_a_rock_where_they_happen_to_lie_are_cut_off():
     assert not lobed(scattered)
 
 
+def test_lobes_at_even_angles_count_whatever_their_size():
+    """Six lobes at even angles, two of them small (a star's arms on its narrow
+    side): the four of the pebbles' size alone lie at uneven angles (gaps of
+    60 and 120 degrees), but every lobe counts towards the spacing, and
+    nothing is cut."""
+    lobes = disk(100, 120, 45)
+    for k, radius in enumerate([9, 9, 5, 9, 9, 5]):
+        a = 2 * np.pi * k / 6
+        lobes |= disk(100 + (45 + radius) * np.sin(a), 120 + (45 + radius) * np.cos(a), radius)
+    assert pebbles_off(lobes) is lobes
+
+
 @settings(max_examples=25, deadline=None)
 @given(count=st.integers(3, 12), turn=st.floats(0, 2 * np.pi))
 def test_alike_lobes_at_even_angles_are_left_alone_at_any_count_and_turn(count, turn):

@@ -11,8 +11,9 @@ contact with the body). The tips of a star are neither: they taper, and are
 widest where they join. Lobes of the rock's own shape (a lobed star, a
 Superformula of high symmetry) are round and necked too, but they come as
 several pieces of much the same size all round the body, at even angles;
-pebbles touch a rock where they happen to lie, even when they lie all round it. A pebble pressed hard against a rock meets it
-along a contact nearly as wide as itself, with no neck; the outline still
+pebbles touch a rock where they happen to lie, even when they lie all round
+it. A pebble pressed hard against a rock meets it along a contact nearly as
+wide as itself, with no neck; the outline still
 turns in at a wedge on either side of it, where the tip of a teardrop runs
 on along a gently hollow flank.
 
