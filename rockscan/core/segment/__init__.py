@@ -133,7 +133,7 @@ Steps (see :func:`segment`):
 8. **Pebbles and slivers off.** Round pieces that hang off the chosen outline
    at a neck (touching pebbles, which join every cue's region) are cut off
    along their contacts (``rockscan.core.segment.pebbles``); lobes all round
-   it are the rock's own shape and stay. Then thin bands that run off the
+   it at even angles are the rock's own shape and stay. Then thin bands that run off the
    outline along a crevice, many times longer than wide and reaching well
    away from the rock's body, are cut off (``rockscan.core.segment.slivers``).
 9. **Shadow off.** A cast shadow darker than half-way between the ground and
