@@ -34,7 +34,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-from rockscan.core.segment.split import Pieces, all_round, cut_back, opened_pieces, piece_angles
+from rockscan.core.segment.split import Pieces, cut_back, opened_pieces, piece_angles
 from rockscan.core.segment.stats import label_maxima
 
 __all__ = ["lobed", "pebble_share", "pebbles_off"]
@@ -287,9 +287,12 @@ def _lobes(found: _Pieces, alike: NDArray[np.int64]) -> bool:
     Every piece counts towards the spacing, of the alike size or not: a
     star's arms on its narrow side come off smaller than the rest.
     """
-    labels, body = found.opened.labels, found.opened.body
-    if alike.size < LOBES or not all_round(labels, body, alike, LOBES_SPREAD):
+    if alike.size < LOBES:
         return False
-    angles = np.sort(piece_angles(labels, body, _alike(found, None)))
+    every = _alike(found, None)  # the alike pieces are among them
+    angles = piece_angles(found.opened.labels, found.opened.body, every)
+    if abs(np.exp(1j * angles[np.isin(every, alike)]).mean()) >= LOBES_SPREAD:
+        return False
+    angles = np.sort(angles)
     gaps = np.diff(angles, append=angles[0] + 2.0 * math.pi)
     return bool(gaps.std() <= EVEN_SPREAD * gaps.mean())
