@@ -8,6 +8,9 @@ checked against a walk through them one node at a time.
 
 from __future__ import annotations
 
+import sys
+from pathlib import Path
+
 import cv2
 import numpy as np
 import pytest
@@ -26,6 +29,9 @@ from rockscan.core.segment.offset import (
 )
 from rockscan.core.segment.shadow import measured_region
 from rockscan.core.segment.trees import Trees, tree_sum, trees_of
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "scripts"))
+import bench_segment
 
 #: Sensor noise added to a drawn photo (brightness in [0, 1]).
 NOISE = 0.01
@@ -61,6 +67,22 @@ def test_an_outline_inside_a_darkening_limb_moves_out_towards_the_edge(radius, b
     assert after is not None
     assert area(before) < area(after) <= truth.sum()
     assert iou(after >= 0.5, truth >= 0.5) > iou(before >= 0.5, truth >= 0.5) + 0.01
+
+
+@pytest.mark.parametrize(("radius", "blur", "by"), [(20.0, 2.0, 4.5), (25.0, 2.5, 5.0), (30.0, 3.0, 6.0)])
+def test_an_outline_further_off_than_the_reach_moves_again_when_read_again(radius, blur, by):
+    # One move is clipped to the reach; read again from where it left the
+    # outline, the profile still shows an edge to come, and the outline moves on.
+    light, truth = drawn(radius=radius, limb=0.35, blur=blur)
+    before = inset(truth, by)
+    gray, levels = photo_and_levels(light, before)
+    first = offset_moved(gray, before, levels, 1.0)
+    assert first is not None
+    gray, levels = photo_and_levels(light, first)
+    second = offset_moved(gray, first, levels, 1.0)
+    assert second is not None
+    assert area(before) < area(first) < area(second) <= truth.sum()
+    assert iou(second >= 0.5, truth >= 0.5) > iou(first >= 0.5, truth >= 0.5) + 0.01
 
 
 @pytest.mark.parametrize(
@@ -202,3 +224,28 @@ def test_an_easy_photo_keeps_the_outline_the_fast_path_gave(monkeypatch):
     monkeypatch.setattr(finish, "offsets_read", never)
     monkeypatch.setattr(finish, "moved_by", never)
     segmentation.segment(pixels)
+
+
+def test_a_rock_chosen_among_the_whole_pool_is_read_again_where_its_first_move_left_it(monkeypatch):
+    # Development photo "vignette-blur-jpeg" 4046 is decided by the whole
+    # pool: a light rock under a wide blur, its outline short of the edge all round.
+    import rockscan.core.segment as segmentation
+    import rockscan.core.segment.finish as finish
+
+    pixels, _, _ = bench_segment.photo("dev", "vignette-blur-jpeg", 4046)
+    found, choice, easy = segmentation._chosen(pixels, segmentation.SegmentConfig())
+    assert choice is not None
+    calls, move = [], finish._offset_moved
+
+    def recorded(rock, window, read):
+        moved = move(rock, window, read)
+        calls.append((rock, moved))
+        return moved
+
+    monkeypatch.setattr(finish, "_offset_moved", recorded)
+    final, _ = finish.completed(found, choice, pixels, easy=easy)
+    assert len(calls) == 2
+    (_, first), (again, second) = calls
+    assert first is not None and again is first
+    assert final is (second or first)
+    assert area(final.rocks[0].mask) > area(first.rocks[0].mask) > 0

@@ -165,6 +165,9 @@ Steps (see :func:`segment`):
     truth's edge lay beyond such an outline there. Only moves of a pixel or
     more count, in full from ``offset.MIN_MOVE`` (2) pixels of the working
     grid, up to ``offset.REACH`` (3) (``rockscan.core.segment.offset``).
+    The trees are read again on the moved outline, and it moves once more
+    by what they read there: a wide blur over a darkening limb leaves an
+    outline further off the edge than one move reaches.
 
 Known limits: a shadow whose edge with the rock's shaded side the photo does
 not show (the two as dark) stays with a dark rock; a light rock's smooth

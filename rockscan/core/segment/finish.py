@@ -55,6 +55,12 @@ def completed(
     moved = None if before is None else _offset_moved(found, before[0][0], before[1])
     after = before if moved is None else _offsets_of(moved, pixels)
     evidence = offset_evidence(*(None if r is None else r[1].on_usable for r in (before, after)))
+    # A move is clipped to ``offset.REACH``: an outline further off the
+    # rock's edge than that (a wide blur over a darkening limb) is read
+    # again where the first move left it, and moves once more by what the
+    # trees read there. The score reads the first move, as it was fitted.
+    if moved is not None and after is not None:
+        moved = _offset_moved(moved, after[0][0], after[1]) or moved
     return found if moved is None else moved, np.concatenate([choice, evidence])
 
 

@@ -32,7 +32,10 @@ the dark line of its side reads alike, and draws predicted moves of half a
 pixel to a pixel out that its reference, traced half-way, does not have.
 The moves are then median-smoothed over ``SMOOTH_RAYS`` rays, and only the
 band between the outline and its moved copy changes (``snap``): a concave
-outline's bays stay as they are.
+outline's bays stay as they are. The pipeline reads the trees once more on
+the moved outline and moves it again by what they read there
+(``finish.completed``): one move reaches ``REACH``, and a wide blur over a
+darkening limb can leave an outline further off than that.
 """
 
 from __future__ import annotations
