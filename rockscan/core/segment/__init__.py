@@ -168,6 +168,13 @@ Steps (see :func:`segment`):
     The trees are read again on the moved outline, and it moves once more
     by what they read there: a wide blur over a darkening limb leaves an
     outline further off the edge than one move reaches.
+13. **Shaded side on.** Unless the fast path took the photo: under a low
+    light a light rock's far side, lit by the sky alone like its cast
+    shadow beyond it, is left out with the shadow. In sky light the two keep
+    the ratio of their albedos: of the pixels darker than the ground beside
+    the rock, the lighter of two levels, when they lie apart by about the
+    rock's step above the ground, is its shaded side, taken in when the rock
+    stays as compact and grows by 3-35% (``rockscan.core.segment.shade``).
 
 Known limits: a shadow whose edge with the rock's shaded side the photo does
 not show (the two as dark) stays with a dark rock; a light rock's smooth

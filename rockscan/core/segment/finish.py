@@ -1,4 +1,4 @@
-"""The last steps on the chosen outline of the main rock (steps 8-12 of
+"""The last steps on the chosen outline of the main rock (steps 8-13 of
 ``rockscan.core.segment``'s module docstring).
 
 Touching pebbles and slivers are cut off (``pebbles``, ``slivers``); then,
@@ -7,7 +7,8 @@ rock outlined on the working grid is placed (:func:`placed`), a cast shadow
 taken in is cut off (``shadow``), the outline moves to the photo's steepest
 edge where the half-way level missed it (``snap``; off the fast path) and
 out to a shaded rim's valley (``rim``), and, for a rock chosen among the
-whole pool, by the learnt offsets where they agree (``offset``).
+whole pool, by the learnt offsets where they agree (``offset``); last, off
+the fast path, a light rock's shaded side left out is taken in (``shade``).
 """
 
 from __future__ import annotations
@@ -24,6 +25,8 @@ from rockscan.core.segment.offset import OffsetsRead, moved_by, offsets_read
 from rockscan.core.segment.outliner import cropped
 from rockscan.core.segment.pebbles import pebbles_off
 from rockscan.core.segment.rim import rim_on
+from rockscan.core.segment.shade import REACH as SHADE_REACH
+from rockscan.core.segment.shade import shade_on
 from rockscan.core.segment.shadow import MIN_AREA as SHADOW_MIN_AREA
 from rockscan.core.segment.shadow import Region, measured_region, shadow_off
 from rockscan.core.segment.slivers import slivers_off
@@ -44,13 +47,13 @@ def completed(
     *,
     easy: bool,
 ) -> tuple[Segmentation, NDArray[np.float64] | None]:
-    """The chosen segmentation after steps 8-12 (``easy``: the fast path
+    """The chosen segmentation after steps 8-13 (``easy``: the fast path
     took it), and for a rock chosen among the whole pool (``choice``, its
     score's features from the choice) all of the score's features
     (``confidence``), None otherwise."""
     found = finished(found, pixels, full=not easy)
     if choice is None:
-        return found, None
+        return (found if easy else _shade_on(found, pixels)), None
     before = _offsets_of(found, pixels)
     moved = None if before is None else _offset_moved(found, before[0][0], before[1])
     after = before if moved is None else _offsets_of(moved, pixels)
@@ -61,7 +64,21 @@ def completed(
     # trees read there. The score reads the first move, as it was fitted.
     if moved is not None and after is not None:
         moved = _offset_moved(moved, after[0][0], after[1]) or moved
-    return found if moved is None else moved, np.concatenate([choice, evidence])
+    return _shade_on(found if moved is None else moved, pixels), np.concatenate([choice, evidence])
+
+
+def _shade_on(found: Segmentation, pixels: NDArray[np.generic]) -> Segmentation:
+    """The main rock with a shaded side its outline left out taken in
+    (``shade.shade_on``), read on a window of the photo ``shade.REACH`` of
+    its radius round it; the rock keeps its score."""
+    if found.channel == "alpha":
+        return found
+    window, gray = rock_window(found, pixels, SHADE_REACH)
+    mask = placed(found.rocks[0], window, found.scale_rowcol)
+    if mask is None:
+        return found
+    grown = shade_on(gray, mask)
+    return found if grown is mask else _main_grown(found, window, mask, grown)
 
 
 def _offsets_of(found: Segmentation, pixels: NDArray[np.generic]) -> tuple[_OnWindow, OffsetsRead] | None:
@@ -271,15 +288,15 @@ def _main_replaced(
 
 
 def rock_window(
-    found: Segmentation, pixels: NDArray[np.generic]
+    found: Segmentation, pixels: NDArray[np.generic], reach: float = RING[1]
 ) -> tuple[tuple[int, int, int, int], NDArray[np.float32]]:
     """The window of the working grid around the main rock (rows r0:r1, cols
-    c0:c1) with the ring its ground's level is read from, and the photo's log
-    brightness on it."""
+    c0:c1) with the ring its ground's level is read from (or ``reach`` of its
+    equivalent radius), and the photo's log brightness on it."""
     rock = found.rocks[0]
     h, w = rock.mask.shape
     radius = math.sqrt(max(rock.area, 1) / math.pi)
-    pad = math.ceil(max(RING_PIXELS[1], RING[1] * radius)) + 2
+    pad = math.ceil(max(RING_PIXELS[1], reach * radius)) + 2
     rows, cols = found.labels.shape
     o0, o1 = rock.origin_rowcol
     window = (max(0, o0 - pad), min(rows, o0 + h + pad), max(0, o1 - pad), min(cols, o1 + w + pad))
