@@ -76,7 +76,8 @@ def shade_on(gray: NDArray[np.floating], mask: NDArray[np.bool_]) -> NDArray[np.
     ----------
     gray : (rows, cols) ndarray of float
         Log brightness of the photo around the rock, on the mask's grid,
-        with a margin of at least ``REACH`` of the rock's equivalent radius.
+        with a margin of at least ``REACH`` of the rock's equivalent radius
+        (less where the frame cuts it: a side reaching its edge is not taken).
     mask : (rows, cols) ndarray of bool
         The rock's region (one piece, holes filled).
 
@@ -124,7 +125,9 @@ def shade_on(gray: NDArray[np.floating], mask: NDArray[np.bool_]) -> NDArray[np.
     # A dome's shaded side is one crescent; where it meets the rock, the
     # shadow's blurred edges leave small pieces beside it.
     side = largest_part(_touching(ndimage.binary_opening(dark & (coarse >= threshold), disk), touching))
-    if side is None:
+    # A side that reaches the edge of the window runs on past the frame: the
+    # photo does not show it whole, nor the ground round it.
+    if side is None or side[[0, -1], :].any() or side[:, [0, -1]].any():
         return mask
     # Closed with the rock across the seam of blurred pixels between them.
     grown = ndimage.binary_fill_holes(ndimage.binary_closing(mask | side, disk))
