@@ -16,10 +16,12 @@ above the ground (``SPLIT``), the lighter level's largest piece that touches
 the rock is its shaded side, and joins it. Darker patches of the ground's texture and a
 shadow's penumbra make lighter pieces too, which wrap round the rock or
 reach out along its shadow: the rock takes its shaded side only when it
-comes out as compact as it was (its solidity no lower, its outline no
-longer against its area by more than ``LONGER``) and grows by ``MIN_GROWTH``
-to ``MAX_GROWTH`` of its area (a dome's shaded side is a crescent, not a
-second rock).
+comes out about as compact as it was (its solidity down by at most
+``SOLIDITY_LOSS``, its outline no longer against its area by more than
+``LONGER``) and grows by ``MIN_GROWTH`` to ``MAX_GROWTH`` of its area (a
+dome's shaded side is a crescent, not a second rock). A side that reaches
+the edge of the window the frame cut is not taken: the photo shows neither
+it whole nor the ground round it.
 """
 
 from __future__ import annotations
@@ -129,8 +131,10 @@ def shade_on(gray: NDArray[np.floating], mask: NDArray[np.bool_]) -> NDArray[np.
     # photo does not show it whole, nor the ground round it.
     if side is None or side[[0, -1], :].any() or side[:, [0, -1]].any():
         return mask
-    # Closed with the rock across the seam of blurred pixels between them.
-    grown = ndimage.binary_fill_holes(ndimage.binary_closing(mask | side, disk))
+    # Closed with the rock across the seam of blurred pixels between them
+    # (the closing's erosion treats the window's edge as ground: the rock
+    # keeps every pixel it had).
+    grown = ndimage.binary_fill_holes(mask | ndimage.binary_closing(mask | side, disk))
     added = int(np.count_nonzero(grown)) - area
     if not MIN_GROWTH * area <= added <= MAX_GROWTH * area:
         return mask
