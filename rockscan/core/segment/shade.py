@@ -101,7 +101,8 @@ def shade_on(gray: NDArray[np.floating], mask: NDArray[np.bool_]) -> NDArray[np.
     ring = (distance > RING[0] * radius + 2.0) & (distance <= RING[1] * radius)
     if np.count_nonzero(ring) < 50:
         return mask
-    fine = ndimage.gaussian_filter(gray.astype(np.float64), 1.0)
+    log = gray.astype(np.float64)
+    fine = ndimage.gaussian_filter(log, 1.0)
     ring_values = fine[ring]
     ground = float(np.percentile(ring_values, GROUND_PERCENTILE))
     step = float(np.median(fine[mask])) - ground
@@ -115,7 +116,7 @@ def shade_on(gray: NDArray[np.floating], mask: NDArray[np.bool_]) -> NDArray[np.
     dark = _touching(dark, touching)
     if np.count_nonzero(dark) < 50:
         return mask
-    coarse = ndimage.gaussian_filter(gray.astype(np.float64), 2.0)
+    coarse = ndimage.gaussian_filter(log, 2.0)
     values = coarse[dark]
     threshold = float(threshold_otsu(values))
     lighter, darker = values[values >= threshold], values[values < threshold]
