@@ -110,8 +110,14 @@ Steps (see :func:`segment`):
    outline between pixels.
 7. **Candidates and choice** (photos of one rock): other cues outline the
    main rock too (``rockscan.core.segment.cues``: GrabCut, the Otsu class
-   under the frame's centre, watershed basins; and the outlines opened), and
-   a model fitted on the segmentation benchmark's
+   under the frame's centre, watershed basins; and the outlines opened).
+   When no region any channel found covers the frame's centre, the main
+   region may be a pocket of ground between a crop's rocks, learnt against
+   a border of neighbours: the object under the centre, found against that
+   region taken for ground, is a candidate too when it lies inside the frame
+   and stands out from the pocket more than the pocket did from the border
+   (``rockscan.core.segment.pocket``), and is refined as the best-supported
+   candidate is. A model fitted on the segmentation benchmark's
    development part chooses among them (``rockscan.core.segment.choose``).
    An easy photo stops at its first outline (the fast path): that of the
    region that stood out above all others, scoring at least ``FAST_SCORE``
@@ -204,6 +210,7 @@ from rockscan.core.segment.detect import _detect, _Detection
 from rockscan.core.segment.finish import completed, placed, rock_window
 from rockscan.core.segment.outliner import Outliner
 from rockscan.core.segment.pebbles import lobed
+from rockscan.core.segment.pocket import centre_object, covers_centre
 from rockscan.core.segment.scene import rocks_of_every_channel
 from rockscan.core.segment.score import WEIGHTS, OutlineEvidence, outline_score
 from rockscan.core.segment.shadow import shadow_left_out
@@ -342,11 +349,18 @@ class _Pool:
     candidates: list[tuple[Segmentation, float, str]]
     outline: Outliner
     incumbent: tuple[Segmentation, float]
+    #: The objects under the frame's centre found against a pocket of ground
+    #: (``pocket.centre_object``), each refined too.
+    pockets: list[tuple[Segmentation, float]] = dataclasses.field(default_factory=list)
 
     def refined(self) -> list[tuple[Segmentation, float, str]]:
-        """The other cues' outlines (``Outliner.refined``), started from the best-supported candidate."""
-        found, detection_score = self.incumbent
-        return [(refined, detection_score, source) for source, refined in self.outline.refined(found)]
+        """The other cues' outlines (``Outliner.refined``), started from the best-supported
+        candidate and from each object found against a pocket of ground."""
+        return [
+            (refined, detection_score, source)
+            for found, detection_score in (self.incumbent, *self.pockets)
+            for source, refined in self.outline.refined(found)
+        ]
 
 
 def _candidate_pool(
@@ -385,10 +399,12 @@ def _candidate_pool(
         if every is None:
             raise NoRockFoundError(_NOTHING_FOUND)
         return every
+    detections = []
     for channel in _channels(small):
         detection = _detect(channel.values(small), channel, config, all_rocks)
         if detection is None:
             continue
+        detections.append(detection)
         rivals_seen = bool(pool)
         for candidate in _candidates(detection):
             found = outline(candidate)
@@ -414,9 +430,33 @@ def _candidate_pool(
                 best = (key, found, candidate.score)
     if best is None:
         raise NoRockFoundError(_NOTHING_FOUND)
-    # The refinements start from the outline the photo supports best.
+    pockets = _pocket_candidates(detections, outline, config)
+    # The refinements start from the outline the photo supports best (and from
+    # each object under the centre, which has no rival among the detected).
     _, incumbent, detection_score = best
-    return _Pool(pool, outline, (incumbent, detection_score))
+    return _Pool(
+        pool + [(found, score, "detected") for found, score in pockets],
+        outline,
+        (incumbent, detection_score),
+        pockets,
+    )
+
+
+def _pocket_candidates(
+    detections: list[_Detection], outline: Outliner, config: SegmentConfig
+) -> list[tuple[Segmentation, float]]:
+    """When no region any channel found covers the frame's centre, the object under it,
+    found against each channel's main region taken for ground (``pocket.centre_object``),
+    outlined, with its detection score."""
+    if any(covers_centre(detection) for detection in detections):
+        return []
+    found = []
+    for detection in detections:
+        candidate = centre_object(detection, config)
+        outlined = outline(candidate) if candidate is not None else None
+        if outlined is not None:
+            found.append((outlined, candidate.score))
+    return found
 
 
 #: Why no rock was found when no channel shows a region standing out.

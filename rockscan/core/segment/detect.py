@@ -30,6 +30,8 @@ class _Detection:
     others: list[NDArray[np.bool_]]
     #: Regions that might be the main rock instead: (score, region, polarity), best first.
     alternatives: list[tuple[float, NDArray[np.bool_], str]]
+    #: The channel smoothed and flattened by the lighting, at detection size.
+    flat: NDArray[np.float32]
 
 
 def _poly_terms(rows_norm: NDArray[np.float64], cols_norm: NDArray[np.float64], degree: int) -> list:
@@ -204,7 +206,7 @@ def _detect(
         stat_ground = ~rocks
         fit_ground = ~(rocks | far) if (~(rocks | far)).mean() >= 0.1 else stat_ground
     score, regions, polarity, others, alternatives = found
-    return _Detection(score, regions, polarity, lighting, channel, outliers, others, alternatives)
+    return _Detection(score, regions, polarity, lighting, channel, outliers, others, alternatives, flat)
 
 
 def _luminance_polarity(work: NDArray[np.generic], dtype: np.dtype, rock: RockMask) -> str:
