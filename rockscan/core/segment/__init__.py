@@ -431,8 +431,9 @@ def _candidate_pool(
     if best is None:
         raise NoRockFoundError(_NOTHING_FOUND)
     pockets = _pocket_candidates(detections, outline, config)
-    # The refinements start from the outline the photo supports best (and from
-    # each object under the centre, which has no rival among the detected).
+    # The refinements start from the outline the photo supports best, and from
+    # each object under the centre: the best-supported outline is then likely a
+    # pocket of ground, whose refinements outline that pocket again.
     _, incumbent, detection_score = best
     return _Pool(
         pool + [(found, score, "detected") for found, score in pockets],

@@ -6,8 +6,9 @@ the neighbours'; what stands out from them may be a pocket of the ground
 between the rocks, while the rock under the centre, of its neighbours' level,
 stands out from nothing. Figure and ground have traded places.
 
-When no region a detection found covers the frame's centre, its main region
-is taken for the ground: each pixel's deviation from that region's level is
+When no region any channel's detection found (main, whole or runner-up)
+covers the frame's centre, each detection's main region is taken for the
+ground: each pixel's deviation from that region's level is
 measured in its robust spreads, the pixels beyond ``z_grow`` on the side of
 the centre's own deviation (which must itself lie beyond it) make regions, the
 one under the centre is parted from touching neighbours as detection parts
