@@ -4,11 +4,12 @@
 Touching pebbles and slivers are cut off (``pebbles``, ``slivers``); then,
 on a window of the photo round the rock (:func:`rock_window`), on which the
 rock outlined on the working grid is placed (:func:`placed`), a cast shadow
-taken in is cut off (``shadow``), the outline moves to the photo's steepest
-edge where the half-way level missed it (``snap``; off the fast path) and
-out to a shaded rim's valley (``rim``), and, for a rock chosen among the
-whole pool, by the learnt offsets where they agree (``offset``); last, off
-the fast path, a light rock's shaded side left out is taken in (``shade``).
+taken in is cut off (``shadow``; in colour, only a part of the ground's
+hue), the outline moves to the photo's steepest edge where the half-way
+level missed it (``snap``; off the fast path) and out to a shaded rim's
+valley (``rim``), and, for a rock chosen among the whole pool, by the
+learnt offsets where they agree (``offset``); last, off the fast path, a
+light rock's shaded side left out is taken in (``shade``).
 """
 
 from __future__ import annotations
@@ -28,7 +29,7 @@ from rockscan.core.segment.rim import rim_on
 from rockscan.core.segment.shade import REACH as SHADE_REACH
 from rockscan.core.segment.shade import shade_on
 from rockscan.core.segment.shadow import MIN_AREA as SHADOW_MIN_AREA
-from rockscan.core.segment.shadow import Region, measured_region, shadow_off
+from rockscan.core.segment.shadow import Region, hue_from_ground, measured_region, shadow_off
 from rockscan.core.segment.slivers import slivers_off
 from rockscan.core.segment.snap import MARGIN as SNAP_MARGIN
 from rockscan.core.segment.snap import REACH as SNAP_REACH
@@ -79,6 +80,33 @@ def _shade_on(found: Segmentation, pixels: NDArray[np.generic]) -> Segmentation:
         return found
     grown = shade_on(gray, mask)
     return found if grown is mask else _main_grown(found, window, mask, grown)
+
+
+def _rock_hued(
+    found: Segmentation,
+    pixels: NDArray[np.generic],
+    window: tuple[int, int, int, int],
+    mask: NDArray[np.bool_],
+    kept: NDArray[np.bool_],
+) -> bool:
+    """Whether what a shadow cut would take off the main rock has the rock's
+    hue, not the ground's: at least ``ROCK_HUE`` of the way from the ground's
+    hue to the rest of the rock's (``shadow.hue_from_ground``), a darker band
+    of the rock itself, which stays. Read only when a cut is proposed; a
+    gray photo, or a part without a hue to read, is cut as found."""
+    colour = _working_colour(pixels, window, found.scale_rowcol)
+    if colour is None:
+        return False
+    place = hue_from_ground(colour, mask, mask & ~kept)
+    return place is not None and place >= ROCK_HUE
+
+
+#: How far from the ground's hue towards the rock's a part a shadow cut
+#: would take off must lie to stay on the rock. Half-way is where the part is
+#: as near either; where the rock's and the ground's hues lie close, noise
+#: puts a cast shadow on either side of it, and a band of the rock's own
+#: lies nearer the rock's by far.
+ROCK_HUE = 0.75
 
 
 def _offsets_of(found: Segmentation, pixels: NDArray[np.generic]) -> tuple[_OnWindow, OffsetsRead] | None:
@@ -186,6 +214,8 @@ def _edges(found: Segmentation, pixels: NDArray[np.generic], *, snap: bool = Tru
     if region is None:
         return found
     kept = shadow_off(gray, mask, region)
+    if kept is not mask and _rock_hued(found, pixels, window, mask, kept):
+        kept = mask
     if kept is not mask:
         rock = found.rocks[0]
         (r0, _, c0, _), (o0, o1), (h, w) = window, rock.origin_rowcol, rock.mask.shape
@@ -351,6 +381,34 @@ def _working_gray(
     (exact halvings, then one resize) before the conversion to gray."""
     import cv2
 
+    reduced, dtype, size = _reduced(pixels, window, scale_rowcol)
+    gray = _unit(reduced[..., :3].astype(np.float32) @ _LUMA if reduced.ndim == 3 else reduced, dtype)
+    if gray.shape != size[::-1]:
+        gray = cv2.resize(gray, size, interpolation=cv2.INTER_LINEAR)
+    return gray
+
+
+def _working_colour(
+    pixels: NDArray[np.generic], window: tuple[int, int, int, int], scale_rowcol: tuple[float, float]
+) -> NDArray[np.float32] | None:
+    """Red, green and blue in [0, 1] of a window of the working image, reduced
+    as :func:`_working_gray` reduces it; None for a gray photo."""
+    import cv2
+
+    reduced, dtype, size = _reduced(pixels, window, scale_rowcol)
+    if reduced.ndim != 3:
+        return None
+    colour = _unit(np.ascontiguousarray(reduced[..., :3]), dtype)
+    if colour.shape[:2] != size[::-1]:
+        colour = cv2.resize(colour, size, interpolation=cv2.INTER_LINEAR)
+    return colour
+
+
+def _reduced(
+    pixels: NDArray[np.generic], window: tuple[int, int, int, int], scale_rowcol: tuple[float, float]
+) -> tuple[NDArray[np.generic], np.dtype, tuple[int, int]]:
+    """The photo's pixels under a window of the working image, reduced by exact
+    halvings towards its scale; their type, and the window's (cols, rows)."""
     r0, r1, c0, c1 = window
     sr, sc = scale_rowcol
     photo = np.asarray(pixels)
@@ -360,10 +418,7 @@ def _working_gray(
     q0, q1 = math.floor(c0 * sc), min(photo.shape[1], max(math.floor(c0 * sc) + 1, round(c1 * sc)))
     size = (c1 - c0, r1 - r0)
     reduced, _ = _at_scale(_pyramid(photo[p0:p1, q0:q1], max(1, min(size))), max(sr, sc))
-    gray = _unit(reduced[..., :3].astype(np.float32) @ _LUMA if reduced.ndim == 3 else reduced, photo.dtype)
-    if gray.shape != size[::-1]:
-        gray = cv2.resize(gray, size, interpolation=cv2.INTER_LINEAR)
-    return gray
+    return reduced, photo.dtype, size
 
 
 #: Added to brightness in [0, 1] before its logarithm (ten levels of eight

@@ -52,6 +52,13 @@ the rock alone, inside the chosen outline: :func:`shadow_left_out` takes
 such an inner outline when the part it leaves out looks like darkened
 ground and not like rock (darker than the rock's core, no more varied than
 it, and on the side away from its light).
+
+A rock's own darker band (its shaded side, a vein of its skin) can show a
+rise or a fall like a shadow's. In colour the two differ in hue: a shadow
+keeps the ground's chromaticity, the band the rock's.
+:func:`hue_from_ground` places a part in hue between the ground and the
+rest of the rock, for the caller to keep on the rock a part that lies
+near the rock's hue (``rockscan.core.segment.finish``).
 """
 
 from __future__ import annotations
@@ -62,11 +69,12 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
+from rockscan.core.segment.channels import _LEAST_LIGHT
 from rockscan.core.segment.split import largest_part
 from rockscan.core.segment.stats import robust_spread
 from rockscan.core.segment.trace import _core_and_ring, _fill_holes, _sample_at
 
-__all__ = ["Region", "measured_region", "ray_profiles", "shadow_left_out", "shadow_off"]
+__all__ = ["Region", "hue_from_ground", "measured_region", "ray_profiles", "shadow_left_out", "shadow_off"]
 
 #: Rays cast from the rock's centre.
 RAYS = 256
@@ -328,6 +336,69 @@ def shadow_left_out(
         if _away_from_light(gray, inner8, centre, towards):
             return index
     return None
+
+
+def hue_from_ground(
+    colour: NDArray[np.floating], rock: NDArray[np.bool_], part: NDArray[np.bool_]
+) -> float | None:
+    """Where a part of a rock's region, taken for its cast shadow, lies in hue
+    from the ground's (0) to the rest of the rock's (1).
+
+    A cast shadow is the ground's own surface, darkened: its chromaticity
+    ``rgb / (r + g + b)`` stays the ground's, while a rock's own shaded side
+    or a darker band of its skin keeps the rock's. The part's median
+    chromaticity is compared with that of the core of the rock without it
+    and of the ring of ground round the whole region (``trace``'s core and
+    ring); pixels darker than ``channels._LEAST_LIGHT`` in sum have no hue
+    and do not count.
+
+    Parameters
+    ----------
+    colour : (rows, cols, 3) ndarray of float
+        Red, green and blue in [0, 1] around the rock, on the masks' grid.
+    rock : (rows, cols) ndarray of bool
+        The rock's region with the part.
+    part : (rows, cols) ndarray of bool
+        The part taken for a shadow, inside ``rock``.
+
+    Returns
+    -------
+    float or None
+        ``0.5 + (d_ground - d_rock) / (2 d)``, from the part's distances in
+        chromaticity to the ground's and the rock's and theirs to each other:
+        the part's place along the line from ground to rock (1 at the rock's
+        hue, 0 at the ground's, 0.5 as near either). None when any of the
+        three has too few pixels with a hue, or the rock and the ground have
+        the same.
+    """
+    rock8 = rock.astype(np.uint8)
+    rest8 = rock8 & (1 - part.astype(np.uint8))
+    _, ring = _core_and_ring(rock8, math.sqrt(np.count_nonzero(rock8) / math.pi))
+    core, _ = _core_and_ring(rest8, math.sqrt(np.count_nonzero(rest8) / math.pi))
+    hues = [_chromaticity(colour, where) for where in (part, core, ring)]
+    if any(hue is None for hue in hues):
+        return None
+    hue, rest, ground = hues
+    apart = float(np.hypot(*(rest - ground)))
+    if apart == 0.0:
+        return None
+    return 0.5 + float(np.hypot(*(hue - ground)) - np.hypot(*(hue - rest))) / (2.0 * apart)
+
+
+#: Least pixels with a hue for a median chromaticity.
+MIN_HUED = 10
+
+
+def _chromaticity(colour: NDArray[np.floating], where: NDArray[np.bool_]) -> NDArray[np.float64] | None:
+    """Median red and green shares ``(r, g) / (r + g + b)`` of the pixels
+    where ``where`` holds that are bright enough to have a hue; None when
+    fewer than ``MIN_HUED`` are."""
+    pixels = colour.reshape(-1, 3)[_sample_at(where)].astype(np.float64)
+    total = pixels.sum(axis=1)
+    lit = total > _LEAST_LIGHT
+    if np.count_nonzero(lit) < MIN_HUED:
+        return None
+    return np.median(pixels[lit, :2] / total[lit, None], axis=0)
 
 
 def _median_and_iqr(gray: NDArray[np.floating], where: NDArray[np.bool_]) -> tuple[float, float]:

@@ -1,0 +1,106 @@
+"""A shadow cut keeps to parts with the ground's hue (``shadow.hue_from_ground``
+and its use in ``rockscan.core.segment.finish``).
+
+The model photos are the lit dome of ``test_segment_shadow`` in colour: the
+rock and the ground each reflect the light in a hue of their own, and a cast
+shadow is the ground darkened. Then photos of the independent generator on
+which the shadow step, before it read hue, cut a darker band of the rock.
+"""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+from test_segment_shadow import lit_rock
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "scripts"))
+import bench_segment
+
+import rockscan.core.segment.finish as finish
+from rockscan.core.segment import segment
+from rockscan.core.segment.shadow import hue_from_ground
+
+PURPLE = np.array([0.9, 0.55, 1.0])
+GREEN = np.array([0.55, 1.0, 0.6])
+
+
+def in_colour(
+    rock_hue: np.ndarray, ground_hue: np.ndarray, **kwargs
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The lit dome's photo with the rock's reflectance in one hue and the ground's in
+    another (each channel's albedo scaled), its rock and its cast shadow."""
+    photo, rock, shadow = lit_rock(**kwargs)
+    hue = np.where(rock[..., None], rock_hue, ground_hue)
+    return np.clip(photo[..., None] * hue, 0.0, 1.0), rock, shadow
+
+
+@pytest.mark.parametrize("azimuth", [0.0, 100.0, 200.0, 300.0])
+def test_a_cast_shadow_has_the_grounds_hue(azimuth):
+    colour, rock, shadow = in_colour(PURPLE, GREEN, azimuth=np.radians(azimuth))
+    assert shadow.sum() > 500
+    # Every pixel of the shadow has the ground's chromaticity exactly.
+    assert hue_from_ground(colour, rock | shadow, shadow) == pytest.approx(0.0, abs=1e-9)
+
+
+@pytest.mark.parametrize("azimuth", [0.0, 100.0, 200.0, 300.0])
+def test_a_rocks_shaded_side_has_the_rocks_hue(azimuth):
+    colour, rock, _ = in_colour(PURPLE, GREEN, azimuth=np.radians(azimuth))
+    # The darkest third of the dome: its side turned from the light.
+    brightness = colour.sum(axis=2)
+    shaded = rock & (brightness <= np.percentile(brightness[rock], 33))
+    assert hue_from_ground(colour, rock, shaded) == pytest.approx(1.0, abs=1e-9)
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_under_sensor_noise_shadow_and_shaded_side_stay_on_their_sides(seed):
+    colour, rock, shadow = in_colour(PURPLE, GREEN, seed=seed)
+    rng = np.random.default_rng(seed)
+    colour = np.clip(colour + 0.02 * rng.standard_normal(colour.shape), 0.0, 1.0)
+    brightness = colour.sum(axis=2)
+    shaded = rock & (brightness <= np.percentile(brightness[rock], 33))
+    assert hue_from_ground(colour, rock | shadow, shadow) < 1.0 - finish.ROCK_HUE
+    assert hue_from_ground(colour, rock, shaded) >= finish.ROCK_HUE
+
+
+def test_a_gray_photo_in_colour_cannot_tell():
+    colour, rock, shadow = in_colour(np.ones(3), np.ones(3))
+    assert hue_from_ground(colour, rock | shadow, shadow) is None
+
+
+def test_a_part_too_dark_for_a_hue_cannot_tell():
+    colour, rock, shadow = in_colour(PURPLE, GREEN)
+    colour[shadow] = 0.0
+    assert hue_from_ground(colour, rock | shadow, shadow) is None
+
+
+# Development photos whose outline was right until the shadow step cut a
+# darker band of the rock off it, a band of the rock's hue on ground of
+# another (IoU 0.991 -> 0.899, 0.989 -> 0.890 and 0.989 -> 0.865), and photos
+# whose cast shadow the step takes off in colour (0.641 -> 0.918, 0.757 ->
+# 0.932 and 0.705 -> 0.953).
+ROCK_BANDS = [("large", 4235), ("touching-pebbles", 4290), ("shaded", 4152)]
+SHADOWS = [("shaded", 4164), ("shaded", 4262), ("shaded", 4271)]
+
+
+def outlined(condition: str, index: int) -> float:
+    pixels, truth, kind = bench_segment.photo("dev", condition, index)
+    found, _ = bench_segment.as_method(segment)(pixels, kind)
+    return bench_segment.score_rock(found == 1, truth == 1).iou
+
+
+@pytest.mark.parametrize(("condition", "index"), ROCK_BANDS)
+def test_a_darker_band_of_the_rocks_hue_stays(condition, index):
+    assert outlined(condition, index) >= 0.95
+
+
+@pytest.mark.parametrize(("condition", "index"), SHADOWS)
+def test_a_cast_shadow_of_the_grounds_hue_is_still_taken_off(condition, index):
+    assert outlined(condition, index) >= 0.9
+
+
+def test_without_hue_the_band_is_cut(monkeypatch):
+    monkeypatch.setattr(finish, "_rock_hued", lambda *args: False)
+    assert outlined(*ROCK_BANDS[0]) < 0.92
