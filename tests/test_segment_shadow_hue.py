@@ -14,6 +14,8 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 from test_segment_shadow import lit_rock
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "scripts"))
@@ -63,6 +65,22 @@ def test_under_sensor_noise_shadow_and_shaded_side_stay_on_their_sides(seed):
     shaded = rock & (brightness <= np.percentile(brightness[rock], 33))
     assert hue_from_ground(colour, rock | shadow, shadow) < 1.0 - finish.ROCK_HUE
     assert hue_from_ground(colour, rock, shaded) >= finish.ROCK_HUE
+
+
+@settings(max_examples=25, deadline=None)
+@given(st.floats(0.4, 1.0), st.sampled_from([0.0, 100.0, 200.0, 300.0]))
+def test_the_place_in_hue_does_not_depend_on_how_dark_the_part_is(factor, azimuth):
+    # Chromaticity is brightness divided out: a deeper or a paler shadow, or
+    # shaded side, lies in hue where it did.
+    colour, rock, shadow = in_colour(PURPLE, GREEN, azimuth=np.radians(azimuth))
+    brightness = colour.sum(axis=2)
+    shaded = rock & (brightness <= np.percentile(brightness[rock], 33))
+    for region, part in ((rock | shadow, shadow), (rock, shaded)):
+        dimmed = colour.copy()
+        dimmed[part] *= factor
+        assert hue_from_ground(dimmed, region, part) == pytest.approx(
+            hue_from_ground(colour, region, part), abs=1e-9
+        )
 
 
 def test_a_gray_photo_in_colour_cannot_tell():

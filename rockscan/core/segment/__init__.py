@@ -151,10 +151,10 @@ Steps (see :func:`segment`):
    rock that a cue outlined with its shadow, the profile instead falls, last,
    from the rock's rim to a band well darker than the ground that keeps the
    ground's grain; what lies beyond that fall goes the same way. In colour,
-   a part to be cut that lies in hue nearer the rest of the rock than the
-   ground (``finish.ROCK_HUE`` of the way from the ground's chromaticity to
-   the rock's) is a darker band of the rock itself, and stays: a shadow is
-   darkened ground, of the ground's hue.
+   a part to be cut that lies at least ``finish.ROCK_HUE`` of the way in hue
+   from the ground's chromaticity to the rest of the rock's is a darker band
+   of the rock itself, and stays: a shadow is darkened ground, of the
+   ground's hue.
 10. **Rim on.** A light domed rock darkens towards its rim, below the
     ground's level, and the half-way threshold leaves that rim out; where,
     along rays from the rock's centre, the profile falls past the outline
