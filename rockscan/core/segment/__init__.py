@@ -131,7 +131,8 @@ Steps (see :func:`segment`):
    ``FAST_PROBABILITY``) it stands, and the other cues' outlines, GrabCut
    above all, which cost most, are not made. Unless the choice is sure, a
    candidate inside the chosen outline replaces it when the part it leaves
-   out is a cast shadow darker than the rock (``shadow.shadow_left_out``).
+   out is a cast shadow darker than the rock (``shadow.shadow_left_out``)
+   and, in colour, not of the rock's own hue (``finish.rock_hued``).
    A rock chosen among the whole pool is scored, once its outline is
    final, by how sure that choice is over the photo and by how well the
    offsets of step 12 agree with its outline
@@ -211,7 +212,7 @@ from rockscan.core.segment.channels import _at_scale, _channels, _check_pixels, 
 from rockscan.core.segment.choose import choose_ranked, rank
 from rockscan.core.segment.confidence import confidence_features, outline_confidence
 from rockscan.core.segment.detect import _detect, _Detection
-from rockscan.core.segment.finish import completed, placed, rock_window
+from rockscan.core.segment.finish import completed, placed, rock_hued, rock_window
 from rockscan.core.segment.outliner import Outliner
 from rockscan.core.segment.pebbles import lobed
 from rockscan.core.segment.pocket import centre_object, covers_centre
@@ -319,7 +320,10 @@ def _without_shadow(
     if outer is None or not inners:
         return found
     chosen = shadow_left_out(gray, outer, inners)
-    return found if chosen is None else candidates[which[chosen]][0]
+    # A part of the rock's own hue is a darker band of the rock, not its shadow.
+    if chosen is None or rock_hued(pixels, window, found.scale_rowcol, outer, outer & ~inners[chosen]):
+        return found
+    return candidates[which[chosen]][0]
 
 
 #: The choice model's probability from which its choice is sure: among the

@@ -38,7 +38,7 @@ from rockscan.core.segment.split import largest_part
 from rockscan.core.segment.trace import RING, RING_PIXELS, _fill_holes
 from rockscan.core.segment.types import RockMask, Segmentation
 
-__all__ = ["completed", "finished", "offset_inputs", "placed", "rock_window"]
+__all__ = ["completed", "finished", "offset_inputs", "placed", "rock_hued", "rock_window"]
 
 
 def completed(
@@ -82,22 +82,39 @@ def _shade_on(found: Segmentation, pixels: NDArray[np.generic]) -> Segmentation:
     return found if grown is mask else _main_grown(found, window, mask, grown)
 
 
-def _rock_hued(
-    found: Segmentation,
+def rock_hued(
     pixels: NDArray[np.generic],
     window: tuple[int, int, int, int],
-    mask: NDArray[np.bool_],
-    kept: NDArray[np.bool_],
+    scale_rowcol: tuple[float, float],
+    region: NDArray[np.bool_],
+    part: NDArray[np.bool_],
 ) -> bool:
-    """Whether what a shadow cut would take off the main rock has the rock's
-    hue, not the ground's: at least ``ROCK_HUE`` of the way from the ground's
-    hue to the rest of the rock's (``shadow.hue_from_ground``), a darker band
-    of the rock itself, which stays. Read only when a cut is proposed; a
-    gray photo, or a part without a hue to read, is cut as found."""
-    colour = _working_colour(pixels, window, found.scale_rowcol)
+    """Whether a part of a rock's region, taken for its cast shadow, has the
+    rock's hue, not the ground's: at least ``ROCK_HUE`` of the way from the
+    ground's hue to the rest of the rock's (``shadow.hue_from_ground``), a
+    darker band of the rock itself, which stays.
+
+    Parameters
+    ----------
+    pixels : ndarray
+        The photo.
+    window : (r0, r1, c0, c1)
+        The window of the working grid (``scale_rowcol`` photo pixels per
+        grid pixel) that ``region`` and ``part`` cover.
+    scale_rowcol : (float, float)
+    region, part : (rows, cols) ndarray of bool
+        The rock's region with the part, and the part.
+
+    Returns
+    -------
+    bool
+        False for a gray photo, or a part without a hue to read: it goes as
+        the brightness says.
+    """
+    colour = _working_colour(pixels, window, scale_rowcol)
     if colour is None:
         return False
-    place = hue_from_ground(colour, mask, mask & ~kept)
+    place = hue_from_ground(colour, region, part)
     return place is not None and place >= ROCK_HUE
 
 
@@ -214,7 +231,8 @@ def _edges(found: Segmentation, pixels: NDArray[np.generic], *, snap: bool = Tru
     if region is None:
         return found
     kept = shadow_off(gray, mask, region)
-    if kept is not mask and _rock_hued(found, pixels, window, mask, kept):
+    # Read only when a cut is proposed: the fast path costs nothing more.
+    if kept is not mask and rock_hued(pixels, window, found.scale_rowcol, mask, mask & ~kept):
         kept = mask
     if kept is not mask:
         rock = found.rocks[0]

@@ -57,8 +57,9 @@ A rock's own darker band (its shaded side, a vein of its skin) can show a
 rise or a fall like a shadow's. In colour the two differ in hue: a shadow
 keeps the ground's chromaticity, the band the rock's.
 :func:`hue_from_ground` places a part in hue between the ground and the
-rest of the rock, for the caller to keep on the rock a part that lies
-near the rock's hue (``rockscan.core.segment.finish``).
+rest of the rock, for the callers to keep on the rock a part that lies
+near the rock's hue, whether the rays would cut it off or an inner outline
+leaves it out (``rockscan.core.segment.finish.rock_hued``).
 """
 
 from __future__ import annotations
