@@ -297,7 +297,8 @@ def _without_shadow(
     pixels: NDArray[np.generic],
 ) -> Segmentation:
     """The chosen candidate, or the most probable candidate inside it that
-    leaves out a cast shadow it took in (``shadow.shadow_left_out``).
+    leaves out a cast shadow it took in (``shadow.shadow_left_out``), in
+    colour a part of the ground's hue (``finish.rock_hued``).
 
     The rock is the same object, less its shadow: it keeps the chosen
     candidate's score.
