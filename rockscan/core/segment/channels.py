@@ -169,11 +169,19 @@ def _hue_distance(image: NDArray[np.float32], ground: NDArray[np.float32]) -> ND
 def _border_chromaticity(image: NDArray[np.float32]) -> NDArray[np.float32] | None:
     """The median chromaticity of a band along the frame's border (the ground's,
     as detection first learns it), or None where the band is too dark."""
-    total = image.sum(axis=2)
-    lit = border_band(image.shape[:2]) & (total > _LEAST_LIGHT)
-    if np.count_nonzero(lit) < 16:
+    ground = median_chromaticity(image[border_band(image.shape[:2])], 16)
+    return None if ground is None else ground.astype(np.float32)
+
+
+def median_chromaticity(pixels: NDArray[np.floating], least: int) -> NDArray[np.floating] | None:
+    """Median chromaticity ``rgb / (r + g + b)`` of those of ``pixels`` (n, 3)
+    bright enough to have a hue (``_LEAST_LIGHT``), in their own type; None
+    when fewer than ``least`` are."""
+    total = pixels.sum(axis=1)
+    lit = total > _LEAST_LIGHT
+    if np.count_nonzero(lit) < least:
         return None
-    return np.median(image[lit] / total[lit, None], axis=0).astype(np.float32)
+    return np.median(pixels[lit] / total[lit, None], axis=0)
 
 
 def _channels(small: NDArray[np.float32], *, every_hue: bool = False) -> Iterator[_Channel]:

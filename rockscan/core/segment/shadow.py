@@ -70,7 +70,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-from rockscan.core.segment.channels import _LEAST_LIGHT
+from rockscan.core.segment.channels import median_chromaticity
 from rockscan.core.segment.split import largest_part
 from rockscan.core.segment.stats import robust_spread
 from rockscan.core.segment.trace import _core_and_ring, _fill_holes, _sample_at
@@ -350,8 +350,8 @@ def hue_from_ground(
     or a darker band of its skin keeps the rock's. The part's median
     chromaticity is compared with that of the core of the rock without it
     and of the ring of ground round the whole region (``trace``'s core and
-    ring); pixels darker than ``channels._LEAST_LIGHT`` in sum have no hue
-    and do not count.
+    ring); pixels too dark to have a hue do not count
+    (``channels.median_chromaticity``).
 
     Parameters
     ----------
@@ -394,12 +394,8 @@ def _chromaticity(colour: NDArray[np.floating], where: NDArray[np.bool_]) -> NDA
     """Median red and green shares ``(r, g) / (r + g + b)`` of the pixels
     where ``where`` holds that are bright enough to have a hue; None when
     fewer than ``MIN_HUED`` are."""
-    pixels = colour.reshape(-1, 3)[_sample_at(where)].astype(np.float64)
-    total = pixels.sum(axis=1)
-    lit = total > _LEAST_LIGHT
-    if np.count_nonzero(lit) < MIN_HUED:
-        return None
-    return np.median(pixels[lit, :2] / total[lit, None], axis=0)
+    hue = median_chromaticity(colour.reshape(-1, 3)[_sample_at(where)].astype(np.float64), MIN_HUED)
+    return None if hue is None else hue[:2]
 
 
 def _median_and_iqr(gray: NDArray[np.floating], where: NDArray[np.bool_]) -> tuple[float, float]:
