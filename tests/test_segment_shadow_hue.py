@@ -132,4 +132,6 @@ def test_a_band_of_the_rocks_hue_stays_and_a_shadow_of_the_grounds_goes(conditio
 )
 def test_without_hue_the_band_is_taken_for_a_shadow(monkeypatch, module, photo, most):
     monkeypatch.setattr(module, "rock_hued", lambda *args: False)
+    # The last step would take the band back by its hue (``hued``).
+    monkeypatch.setattr(finish, "hue_on", lambda colour, mask: mask)
     assert outlined(*photo) < most

@@ -152,7 +152,7 @@ Steps (see :func:`segment`):
    rock that a cue outlined with its shadow, the profile instead falls, last,
    from the rock's rim to a band well darker than the ground that keeps the
    ground's grain; what lies beyond that fall goes the same way. In colour,
-   a part to be cut that lies at least ``finish.ROCK_HUE`` of the way in hue
+   a part to be cut that lies at least ``hued.ROCK_HUE`` of the way in hue
    from the ground's chromaticity to the rest of the rock's is a darker band
    of the rock itself, and stays: a shadow is darkened ground, of the
    ground's hue.
@@ -186,6 +186,13 @@ Steps (see :func:`segment`):
     the rock, the lighter of two levels, when they lie apart by about the
     rock's step above the ground, is its shaded side, taken in when the rock
     stays as compact and grows by 3-35% (``rockscan.core.segment.shade``).
+14. **A side of the rock's hue on.** Unless the fast path took the photo,
+    in colour: a side of the rock that brightness left out keeps the rock's
+    hue, where a cast shadow keeps the ground's. The pixels beside the
+    outline at least ``hued.ROCK_HUE`` of the way in chromaticity from the
+    ground's hue to the rock's join it, where hue tells the two apart and
+    the rock stays as compact and grows by 3-150%
+    (``rockscan.core.segment.hued``).
 
 Known limits: a shadow whose edge with the rock's shaded side the photo does
 not show (the two as dark) stays with a dark rock; a light rock's smooth

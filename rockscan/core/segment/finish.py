@@ -22,6 +22,8 @@ from numpy.typing import NDArray
 
 from rockscan.core.segment.channels import _LUMA, _at_scale, _pyramid, _unit
 from rockscan.core.segment.confidence import offset_evidence
+from rockscan.core.segment.hued import RING as HUE_RING
+from rockscan.core.segment.hued import ROCK_HUE, hue_on
 from rockscan.core.segment.offset import OffsetsRead, moved_by, offsets_read
 from rockscan.core.segment.outliner import cropped
 from rockscan.core.segment.pebbles import pebbles_off
@@ -54,7 +56,7 @@ def completed(
     (``confidence``), None otherwise."""
     found = finished(found, pixels, full=not easy)
     if choice is None:
-        return (found if easy else _shade_on(found, pixels)), None
+        return (found if easy else _sides_on(found, pixels)), None
     before = _offsets_of(found, pixels)
     moved = None if before is None else _offset_moved(found, before[0][0], before[1])
     after = before if moved is None else _offsets_of(moved, pixels)
@@ -65,7 +67,13 @@ def completed(
     # trees read there. The score reads the first move, as it was fitted.
     if moved is not None and after is not None:
         moved = _offset_moved(moved, after[0][0], after[1]) or moved
-    return _shade_on(found if moved is None else moved, pixels), np.concatenate([choice, evidence])
+    return _sides_on(found if moved is None else moved, pixels), np.concatenate([choice, evidence])
+
+
+def _sides_on(found: Segmentation, pixels: NDArray[np.generic]) -> Segmentation:
+    """The main rock with a side its outline left out taken in, told by
+    brightness (``shade.shade_on``), then by hue (``hued.hue_on``)."""
+    return _hue_on(_shade_on(found, pixels), pixels)
 
 
 def _shade_on(found: Segmentation, pixels: NDArray[np.generic]) -> Segmentation:
@@ -79,6 +87,22 @@ def _shade_on(found: Segmentation, pixels: NDArray[np.generic]) -> Segmentation:
     if mask is None:
         return found
     grown = shade_on(gray, mask)
+    return found if grown is mask else _main_grown(found, window, mask, grown)
+
+
+def _hue_on(found: Segmentation, pixels: NDArray[np.generic]) -> Segmentation:
+    """The main rock with a part of its own hue its outline left out taken
+    in (``hued.hue_on``), read on a window of the photo's colour
+    ``hued.RING[1]`` of its radius round it; a gray photo's rock, and one an
+    alpha channel gave, stand as they are. The rock keeps its score."""
+    if found.channel == "alpha" or np.ndim(pixels) != 3:
+        return found
+    window = _rock_box(found, HUE_RING[1])
+    colour = _working_colour(pixels, window, found.scale_rowcol)
+    mask = None if colour is None else placed(found.rocks[0], window, found.scale_rowcol)
+    if mask is None:
+        return found
+    grown = hue_on(colour, mask)
     return found if grown is mask else _main_grown(found, window, mask, grown)
 
 
@@ -116,14 +140,6 @@ def rock_hued(
         return False
     place = hue_from_ground(colour, region, part)
     return place is not None and place >= ROCK_HUE
-
-
-#: How far from the ground's hue towards the rock's a part a shadow cut
-#: would take off must lie to stay on the rock. Half-way is where the part is
-#: as near either; where the rock's and the ground's hues lie close, noise
-#: puts a cast shadow on either side of it, and a band of the rock's own
-#: lies nearer the rock's by far.
-ROCK_HUE = 0.75
 
 
 def _offsets_of(found: Segmentation, pixels: NDArray[np.generic]) -> tuple[_OnWindow, OffsetsRead] | None:
@@ -341,15 +357,22 @@ def rock_window(
     """The window of the working grid around the main rock (rows r0:r1, cols
     c0:c1) with the ring its ground's level is read from (or ``reach`` of its
     equivalent radius), and the photo's log brightness on it."""
+    window = _rock_box(found, reach)
+    gray = _working_gray(pixels, window, found.scale_rowcol)
+    return window, np.log(gray + np.float32(_LOG_FLOOR))
+
+
+def _rock_box(found: Segmentation, reach: float) -> tuple[int, int, int, int]:
+    """The window of the working grid (rows r0:r1, cols c0:c1) round the
+    main rock with ``reach`` of its equivalent radius, or the ring its
+    ground's level is read from, past its box; cut by the frame."""
     rock = found.rocks[0]
     h, w = rock.mask.shape
     radius = math.sqrt(max(rock.area, 1) / math.pi)
     pad = math.ceil(max(RING_PIXELS[1], reach * radius)) + 2
     rows, cols = found.labels.shape
     o0, o1 = rock.origin_rowcol
-    window = (max(0, o0 - pad), min(rows, o0 + h + pad), max(0, o1 - pad), min(cols, o1 + w + pad))
-    gray = _working_gray(pixels, window, found.scale_rowcol)
-    return window, np.log(gray + np.float32(_LOG_FLOOR))
+    return (max(0, o0 - pad), min(rows, o0 + h + pad), max(0, o1 - pad), min(cols, o1 + w + pad))
 
 
 def placed(

@@ -34,7 +34,7 @@ from numpy.typing import NDArray
 from rockscan.core.segment.split import largest_part
 from rockscan.core.segment.trace import _disk
 
-__all__ = ["shade_on"]
+__all__ = ["shade_on", "side_joined"]
 
 #: How far past the outline the shaded side and its shadow are looked for,
 #: in equivalent radii of the rock.
@@ -132,12 +132,26 @@ def shade_on(gray: NDArray[np.floating], mask: NDArray[np.bool_]) -> NDArray[np.
     # photo does not show it whole, nor the ground round it.
     if side is None or side[[0, -1], :].any() or side[:, [0, -1]].any():
         return mask
-    # Closed with the rock across the seam of blurred pixels between them
-    # (the closing's erosion treats the window's edge as ground: the rock
-    # keeps every pixel it had).
+    return side_joined(mask, side, disk, MAX_GROWTH)
+
+
+def side_joined(
+    mask: NDArray[np.bool_], side: NDArray[np.bool_], disk: NDArray[np.bool_], max_growth: float
+) -> NDArray[np.bool_]:
+    """A rock's mask with a side beside it joined, or ``mask`` itself when
+    the rock would not grow by ``MIN_GROWTH`` to ``max_growth`` of its area or
+    would not stay about as compact (``SOLIDITY_LOSS``, ``LONGER``).
+
+    The two are closed across the seam of blurred pixels between them by
+    ``disk`` (the closing's erosion treats the window's edge as ground: the
+    rock keeps every pixel it had), and holes are filled.
+    """
+    from scipy import ndimage
+
+    area = int(np.count_nonzero(mask))
     grown = ndimage.binary_fill_holes(mask | ndimage.binary_closing(mask | side, disk))
     added = int(np.count_nonzero(grown)) - area
-    if not MIN_GROWTH * area <= added <= MAX_GROWTH * area:
+    if not MIN_GROWTH * area <= added <= max_growth * area:
         return mask
     if _solidity(grown) < _solidity(mask) - SOLIDITY_LOSS or _roundness(grown) > LONGER * _roundness(mask):
         return mask
