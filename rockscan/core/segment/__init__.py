@@ -193,6 +193,12 @@ Steps (see :func:`segment`):
     ground's hue to the rock's join it, where hue tells the two apart and
     the rock stays as compact and grows by 3-150%
     (``rockscan.core.segment.hued``).
+15. **A part of the ground's hue off.** Then, in colour, a part of the
+    outline that lies near the ground's hue and reaches its edge (a cast
+    shadow, a patch of ground, a pebble of the ground's hue taken in with the
+    rock) is cut off, the rock's hue read on the half of the outline
+    farthest from the ground's, where the rest stays as compact and loses
+    3-60% of its area (``hued.hue_off``).
 
 Known limits: a shadow whose edge with the rock's shaded side the photo does
 not show (the two as dark) stays with a dark rock; a light rock's smooth

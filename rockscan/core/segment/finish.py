@@ -22,8 +22,9 @@ from numpy.typing import NDArray
 
 from rockscan.core.segment.channels import _LUMA, _at_scale, _pyramid, _unit
 from rockscan.core.segment.confidence import offset_evidence
+from rockscan.core.segment.hued import OFF_RING as HUE_OFF_RING
 from rockscan.core.segment.hued import RING as HUE_RING
-from rockscan.core.segment.hued import ROCK_HUE, hue_on
+from rockscan.core.segment.hued import ROCK_HUE, hue_off, hue_on
 from rockscan.core.segment.offset import OffsetsRead, moved_by, offsets_read
 from rockscan.core.segment.outliner import cropped
 from rockscan.core.segment.pebbles import pebbles_off
@@ -56,7 +57,7 @@ def completed(
     (``confidence``), None otherwise."""
     found = finished(found, pixels, full=not easy)
     if choice is None:
-        return (found if easy else _sides_on(found, pixels)), None
+        return (found if easy else _sides(found, pixels)), None
     before = _offsets_of(found, pixels)
     moved = None if before is None else _offset_moved(found, before[0][0], before[1])
     after = before if moved is None else _offsets_of(moved, pixels)
@@ -67,13 +68,14 @@ def completed(
     # trees read there. The score reads the first move, as it was fitted.
     if moved is not None and after is not None:
         moved = _offset_moved(moved, after[0][0], after[1]) or moved
-    return _sides_on(found if moved is None else moved, pixels), np.concatenate([choice, evidence])
+    return _sides(found if moved is None else moved, pixels), np.concatenate([choice, evidence])
 
 
-def _sides_on(found: Segmentation, pixels: NDArray[np.generic]) -> Segmentation:
+def _sides(found: Segmentation, pixels: NDArray[np.generic]) -> Segmentation:
     """The main rock with a side its outline left out taken in, told by
-    brightness (``shade.shade_on``), then by hue (``hued.hue_on``)."""
-    return _hue_on(_shade_on(found, pixels), pixels)
+    brightness (``shade.shade_on``), then by hue (``hued.hue_on``), and a
+    part of the ground's hue it took taken off (``hued.hue_off``)."""
+    return _hue_off(_hue_on(_shade_on(found, pixels), pixels), pixels)
 
 
 def _shade_on(found: Segmentation, pixels: NDArray[np.generic]) -> Segmentation:
@@ -95,15 +97,44 @@ def _hue_on(found: Segmentation, pixels: NDArray[np.generic]) -> Segmentation:
     in (``hued.hue_on``), read on a window of the photo's colour
     ``hued.RING[1]`` of its radius round it; a gray photo's rock, and one an
     alpha channel gave, stand as they are. The rock keeps its score."""
-    if found.channel == "alpha" or np.ndim(pixels) != 3:
+    read = _in_colour(found, pixels, HUE_RING[1])
+    if read is None:
         return found
-    window = _rock_box(found, HUE_RING[1])
-    colour = _working_colour(pixels, window, found.scale_rowcol)
-    mask = None if colour is None else placed(found.rocks[0], window, found.scale_rowcol)
-    if mask is None:
-        return found
+    window, colour, mask = read
     grown = hue_on(colour, mask)
     return found if grown is mask else _main_grown(found, window, mask, grown)
+
+
+def _hue_off(found: Segmentation, pixels: NDArray[np.generic]) -> Segmentation:
+    """The main rock with a part of the ground's hue its outline took cut off
+    (``hued.hue_off``), read on a window of the photo's colour
+    ``hued.OFF_RING[1]`` of its radius round it; a gray photo's rock, and one
+    an alpha channel gave, stand as they are. The rock keeps its score."""
+    read = _in_colour(found, pixels, HUE_OFF_RING[1])
+    if read is None:
+        return found
+    window, colour, mask = read
+    kept = hue_off(colour, mask)
+    if kept is mask:
+        return found
+    rock = found.rocks[0]
+    (r0, _, c0, _), (o0, o1), (h, w) = window, rock.origin_rowcol, rock.mask.shape
+    return _main_cut(found, kept[o0 - r0 : o0 - r0 + h, o1 - c0 : o1 - c0 + w] & rock.mask)
+
+
+def _in_colour(
+    found: Segmentation, pixels: NDArray[np.generic], reach: float
+) -> tuple[tuple[int, int, int, int], NDArray[np.float32], NDArray[np.bool_]] | None:
+    """The window of the working grid round the main rock with ``reach`` of
+    its radius (``_rock_box``), the photo's colour on it and the rock's mask
+    placed on it; None for a gray photo, a rock an alpha channel gave, or one
+    that does not fit."""
+    if found.channel == "alpha" or np.ndim(pixels) != 3:
+        return None
+    window = _rock_box(found, reach)
+    colour = _working_colour(pixels, window, found.scale_rowcol)
+    mask = None if colour is None else placed(found.rocks[0], window, found.scale_rowcol)
+    return None if mask is None else (window, colour, mask)
 
 
 def rock_hued(

@@ -1,4 +1,5 @@
-"""A part of a rock of the rock's own hue, left out of its outline, and taking it back in.
+"""A rock's outline told by hue: a side of the rock's own hue that brightness
+left out taken in, and a part of the ground's hue it took taken off.
 
 A rock that differs from its ground in hue keeps its hue where its brightness
 changes: on its side turned from the light, on a band of its skin darker or
@@ -23,6 +24,17 @@ when it grows by 3% (``shade.MIN_GROWTH``) to ``MAX_GROWTH`` of its area and
 comes out about as compact as it was, as a shaded side must
 (``shade.side_joined``). Pixels too dark to
 have a hue are never taken.
+
+The other way (``hue_off``), a cast shadow, a patch of ground or a pebble of
+the ground's hue taken in with the rock lies near the ground's hue: the ground
+is read in a ring just past the outline (``OFF_RING``), the rock on the half
+of the outline's pixels farthest in hue from it (an outline that took its
+shadow has it in its core). Where hue tells the two apart, the pixels of the
+outline at most ``1 - ROCK_HUE`` of the way to the rock's hue, opened, that
+reach the outline's edge are cut off; the rock keeps the largest piece of the
+rest, opened too, when it loses ``MIN_SHRINK`` to ``MAX_SHRINK`` of its area
+and stays about as compact as it was (``shade.stays_compact``): a band of
+the rock's skin near the ground's hue cuts it in two or notches it.
 """
 
 from __future__ import annotations
@@ -33,11 +45,11 @@ import numpy as np
 from numpy.typing import NDArray
 
 from rockscan.core.segment.channels import _LEAST_LIGHT
-from rockscan.core.segment.shade import _touching, side_joined
+from rockscan.core.segment.shade import _touching, side_joined, stays_compact
 from rockscan.core.segment.split import largest_part
 from rockscan.core.segment.trace import _disk
 
-__all__ = ["ROCK_HUE", "hue_on"]
+__all__ = ["ROCK_HUE", "hue_off", "hue_on"]
 
 #: How far from the ground's hue towards the rock's a pixel (or a part a
 #: shadow cut would take off, ``finish.rock_hued``) must lie to be the
@@ -68,6 +80,13 @@ SIGMA = 1.0
 #: Fewest pixels with a hue for the ring and the core to be read.
 MIN_RING = 50
 MIN_CORE = 20
+#: ``hue_off`` reads the ground's hue in a ring this far past the outline
+#: (equivalent radii, plus a pixel for the blurred edge) ...
+OFF_RING = (0.1, 0.5)
+#: ... and cuts off at least this share of the rock's area, and at most this:
+#: a shadow may be as large as the rock it joins.
+MIN_SHRINK = 0.03
+MAX_SHRINK = 0.6
 
 
 def hue_on(colour: NDArray[np.floating], mask: NDArray[np.bool_]) -> NDArray[np.bool_]:
@@ -101,24 +120,98 @@ def hue_on(colour: NDArray[np.floating], mask: NDArray[np.bool_]) -> NDArray[np.
     core = inside > CORE * radius
     if np.count_nonzero(core) < MIN_CORE:
         core = inside > 0.5 * inside.max()
-    smooth = np.stack([ndimage.gaussian_filter(colour[..., k], SIGMA) for k in range(3)], axis=-1)
-    total = smooth.sum(axis=-1)
-    hued = total > _LEAST_LIGHT
+    chroma, hued = _chromaticity(colour)
     ring &= hued
     core &= hued
     if np.count_nonzero(ring) < MIN_RING or np.count_nonzero(core) < MIN_CORE:
         return mask
-    chroma = smooth[..., :2] / np.maximum(total, 1e-6)[..., None]
-    ground = np.median(chroma[ring], axis=0)
-    axis = np.median(chroma[core], axis=0) - ground
-    length2 = float(axis @ axis)
-    if length2 == 0.0:
-        return mask
-    place = ((chroma - ground) @ axis) / length2
-    if np.quantile(place[ring], 1.0 - SEPARATE) > 0.5 or np.quantile(place[core], SEPARATE) < 0.5:
+    place = _place(chroma, ring, core)
+    if place is None:
         return mask
     disk = _disk(max(1, round(OPEN * radius)))
     own = hued & (place >= ROCK_HUE) & (outside > 0) & (outside <= REACH * radius)
     own = ndimage.binary_opening(own, disk)
     part = largest_part(_touching(own, outside <= 2.0)) if own.any() else None
     return mask if part is None else side_joined(mask, part, disk, MAX_GROWTH)
+
+
+def hue_off(colour: NDArray[np.floating], mask: NDArray[np.bool_]) -> NDArray[np.bool_]:
+    """A rock's mask with a part of the ground's hue that reaches its edge cut
+    off (module docstring).
+
+    Parameters
+    ----------
+    colour : (rows, cols, 3) ndarray of float
+        Red, green and blue in [0, 1] around the rock, on the mask's grid,
+        with a margin of at least ``OFF_RING[1]`` of the rock's equivalent
+        radius (less where the frame cuts it).
+    mask : (rows, cols) ndarray of bool
+        The rock's region (one piece, holes filled).
+
+    Returns
+    -------
+    (rows, cols) ndarray of bool
+        The rock without the part, inside ``mask``, or ``mask`` itself,
+        unchanged, when hue does not tell the rock from its ground, no part
+        of the ground's hue reaches the outline, or the rest would not be
+        compact.
+    """
+    from scipy import ndimage
+
+    area = int(np.count_nonzero(mask))
+    if area < 50:
+        return mask
+    radius = math.sqrt(area / math.pi)
+    outside = ndimage.distance_transform_edt(~mask)
+    chroma, hued = _chromaticity(colour)
+    ring = (outside > OFF_RING[0] * radius + 1.0) & (outside <= OFF_RING[1] * radius) & hued
+    inside = mask & hued
+    if np.count_nonzero(ring) < MIN_RING or np.count_nonzero(inside) < MIN_RING:
+        return mask
+    # The rock is the half of the outline farthest in hue from the ground:
+    # its core may be the shadow's.
+    apart = np.hypot(*np.moveaxis(chroma - np.median(chroma[ring], axis=0), -1, 0))
+    rock = inside & (apart >= np.median(apart[inside]))
+    place = _place(chroma, ring, rock)
+    if place is None:
+        return mask
+    disk = _disk(max(1, round(OPEN * radius)))
+    ground = ndimage.binary_opening(mask & hued & (place <= 1.0 - ROCK_HUE), disk)
+    ground = _touching(ground, mask & (ndimage.distance_transform_edt(mask) <= 2.0))
+    if not ground.any():
+        return mask
+    kept = largest_part(ndimage.binary_opening(mask & ~ground, disk))
+    if kept is None:
+        return mask
+    kept = ndimage.binary_fill_holes(kept)
+    cut = area - int(np.count_nonzero(kept))
+    if not MIN_SHRINK * area <= cut <= MAX_SHRINK * area or not stays_compact(mask, kept):
+        return mask
+    return kept
+
+
+def _chromaticity(colour: NDArray[np.floating]) -> tuple[NDArray[np.float64], NDArray[np.bool_]]:
+    """Red and green shares ``(r, g) / (r + g + b)`` of the colour smoothed by
+    ``SIGMA`` pixels, and where a pixel is light enough to have a hue."""
+    from scipy import ndimage
+
+    smooth = np.stack([ndimage.gaussian_filter(colour[..., k], SIGMA) for k in range(3)], axis=-1)
+    total = smooth.sum(axis=-1)
+    return smooth[..., :2] / np.maximum(total, 1e-6)[..., None], total > _LEAST_LIGHT
+
+
+def _place(
+    chroma: NDArray[np.floating], ground: NDArray[np.bool_], rock: NDArray[np.bool_]
+) -> NDArray[np.float64] | None:
+    """Each pixel's place along the line in chromaticity from the median of
+    ``ground`` (0) to that of ``rock`` (1); None when the two are one hue or
+    hue does not tell them apart (``SEPARATE``)."""
+    origin = np.median(chroma[ground], axis=0)
+    axis = np.median(chroma[rock], axis=0) - origin
+    length2 = float(axis @ axis)
+    if length2 == 0.0:
+        return None
+    place = ((chroma - origin) @ axis) / length2
+    if np.quantile(place[ground], 1.0 - SEPARATE) > 0.5 or np.quantile(place[rock], SEPARATE) < 0.5:
+        return None
+    return place

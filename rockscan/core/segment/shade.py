@@ -34,7 +34,7 @@ from numpy.typing import NDArray
 from rockscan.core.segment.split import largest_part
 from rockscan.core.segment.trace import _disk
 
-__all__ = ["shade_on", "side_joined"]
+__all__ = ["shade_on", "side_joined", "stays_compact"]
 
 #: How far past the outline the shaded side and its shadow are looked for,
 #: in equivalent radii of the rock.
@@ -151,11 +151,17 @@ def side_joined(
     area = int(np.count_nonzero(mask))
     grown = ndimage.binary_fill_holes(mask | ndimage.binary_closing(mask | side, disk))
     added = int(np.count_nonzero(grown)) - area
-    if not MIN_GROWTH * area <= added <= max_growth * area:
-        return mask
-    if _solidity(grown) < _solidity(mask) - SOLIDITY_LOSS or _roundness(grown) > LONGER * _roundness(mask):
+    if not MIN_GROWTH * area <= added <= max_growth * area or not stays_compact(mask, grown):
         return mask
     return grown
+
+
+def stays_compact(before: NDArray[np.bool_], after: NDArray[np.bool_]) -> bool:
+    """Whether a rock's mask ``after`` a change is about as compact as
+    ``before``: its solidity down by at most ``SOLIDITY_LOSS``, its outline's
+    length over the square root of its area up by at most ``LONGER``."""
+    solid = _solidity(after) >= _solidity(before) - SOLIDITY_LOSS
+    return solid and _roundness(after) <= LONGER * _roundness(before)
 
 
 def _touching(parts: NDArray[np.bool_], near: NDArray[np.bool_]) -> NDArray[np.bool_]:
