@@ -22,14 +22,13 @@ touches the rock joins it. A neighbour of the rock's hue, or a patch of the
 ground's texture near it, would join as well: the rock takes the piece only
 when it grows by 3% (``shade.MIN_GROWTH``) to ``MAX_GROWTH`` of its area and
 comes out about as compact as it was, as a shaded side must
-(``shade.side_joined``). Pixels too dark to
-have a hue are never taken.
+(``shade.side_joined``). Pixels too dark to have a hue are never taken.
 
 The other way (``hue_off``), a cast shadow, a patch of ground or a pebble of
 the ground's hue taken in with the rock lies near the ground's hue: the ground
 is read in a ring just past the outline (``OFF_RING``), the rock on the half
 of the outline's pixels farthest in hue from it (an outline that took its
-shadow has it in its core). Where hue tells the two apart, the pixels of the
+shadow may have the shadow in its core). Where hue tells the two apart, the pixels of the
 outline at most ``1 - ROCK_HUE`` of the way to the rock's hue, opened, that
 reach the outline's edge are cut off; the rock keeps the largest piece of the
 rest, opened too, when it loses ``MIN_SHRINK`` to ``MAX_SHRINK`` of its area
