@@ -119,16 +119,16 @@ def hue_on(colour: NDArray[np.floating], mask: NDArray[np.bool_]) -> NDArray[np.
     core = inside > CORE * radius
     if np.count_nonzero(core) < MIN_CORE:
         core = inside > 0.5 * inside.max()
-    chroma, hued = _chromaticity(colour)
-    ring &= hued
-    core &= hued
+    chroma, has_hue = _smoothed_chromaticity(colour)
+    ring &= has_hue
+    core &= has_hue
     if np.count_nonzero(ring) < MIN_RING or np.count_nonzero(core) < MIN_CORE:
         return mask
     place = _place(chroma, ring, core)
     if place is None:
         return mask
     disk = _disk(max(1, round(OPEN * radius)))
-    own = hued & (place >= ROCK_HUE) & (outside > 0) & (outside <= REACH * radius)
+    own = has_hue & (place >= ROCK_HUE) & (outside > 0) & (outside <= REACH * radius)
     own = ndimage.binary_opening(own, disk)
     part = largest_part(_touching(own, outside <= 2.0)) if own.any() else None
     return mask if part is None else side_joined(mask, part, disk, MAX_GROWTH)
@@ -162,9 +162,9 @@ def hue_off(colour: NDArray[np.floating], mask: NDArray[np.bool_]) -> NDArray[np
         return mask
     radius = math.sqrt(area / math.pi)
     outside = ndimage.distance_transform_edt(~mask)
-    chroma, hued = _chromaticity(colour)
-    ring = (outside > OFF_RING[0] * radius + 1.0) & (outside <= OFF_RING[1] * radius) & hued
-    inside = mask & hued
+    chroma, has_hue = _smoothed_chromaticity(colour)
+    ring = (outside > OFF_RING[0] * radius + 1.0) & (outside <= OFF_RING[1] * radius) & has_hue
+    inside = mask & has_hue
     if np.count_nonzero(ring) < MIN_RING or np.count_nonzero(inside) < MIN_RING:
         return mask
     # The rock is the half of the outline farthest in hue from the ground:
@@ -175,7 +175,7 @@ def hue_off(colour: NDArray[np.floating], mask: NDArray[np.bool_]) -> NDArray[np
     if place is None:
         return mask
     disk = _disk(max(1, round(OPEN * radius)))
-    ground = ndimage.binary_opening(mask & hued & (place <= 1.0 - ROCK_HUE), disk)
+    ground = ndimage.binary_opening(mask & has_hue & (place <= 1.0 - ROCK_HUE), disk)
     ground = _touching(ground, mask & (ndimage.distance_transform_edt(mask) <= 2.0))
     if not ground.any():
         return mask
@@ -189,7 +189,7 @@ def hue_off(colour: NDArray[np.floating], mask: NDArray[np.bool_]) -> NDArray[np
     return kept
 
 
-def _chromaticity(colour: NDArray[np.floating]) -> tuple[NDArray[np.float64], NDArray[np.bool_]]:
+def _smoothed_chromaticity(colour: NDArray[np.floating]) -> tuple[NDArray[np.float64], NDArray[np.bool_]]:
     """Red and green shares ``(r, g) / (r + g + b)`` of the colour smoothed by
     ``SIGMA`` pixels, and where a pixel is light enough to have a hue."""
     from scipy import ndimage
