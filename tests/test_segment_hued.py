@@ -18,11 +18,11 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 from scipy import ndimage
-from test_segment_shadow import iou
+from test_segment_shadow import CENTRE, iou
 from test_segment_shadow_hue import GREEN, PURPLE, in_colour, outlined
 
 import rockscan.core.segment.finish as finish
-from rockscan.core.segment.hued import hue_off, hue_on
+from rockscan.core.segment.hued import hue_off, hue_on, hue_parted
 
 
 def lit_part(colour: np.ndarray, rock: np.ndarray, share: float = 0.6) -> np.ndarray:
@@ -121,23 +121,82 @@ def test_a_band_of_the_grounds_hue_across_the_rock_does_not_cut_it():
     assert hue_off(colour, rock) is rock
 
 
+ORANGE = np.array([1.0, 0.7, 0.35])
+
+
+def with_patch(
+    hue: np.ndarray, level: float, azimuth: float = 200.0
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """A small dome and, joined to it, a disc larger than the dome of ``hue``
+    at ``level`` times the lit ground's brightness: the photo, the dome and
+    the outline of both, waisted where the two discs meet (as an outline that
+    took a long shadow, or a patch of ground, is)."""
+    colour, rock, _ = in_colour(PURPLE, GREEN, radius=35.0, azimuth=np.radians(azimuth))
+    rows, cols = np.mgrid[: rock.shape[0], : rock.shape[1]]
+    patch = (np.hypot(rows - CENTRE[0], cols - (CENTRE[1] + 70.0)) <= 42.0) & ~rock
+    colour[patch] *= level * hue / GREEN
+    return colour, rock, rock | patch
+
+
+@pytest.mark.parametrize("level", [0.3, 1.0])
+@pytest.mark.parametrize("azimuth", [0.0, 100.0, 200.0, 300.0])
+def test_an_outline_mostly_of_the_grounds_hue_is_cut_to_the_rock(level, azimuth):
+    # The part of the ground's hue is 1.4 times the rock's area: hue_off
+    # reads the ground's hue on the half it takes for the rock's and cannot
+    # cut it (nor may it cut more than MAX_SHRINK).
+    colour, rock, given = with_patch(GREEN, level, azimuth)
+    assert iou(given, rock) < 0.5
+    assert hue_off(colour, given) is given
+    assert iou(hue_parted(colour, given), rock) >= 0.97
+
+
+def test_a_part_of_the_grounds_hue_lighter_than_the_ground_stays():
+    # A lit rock of the ground's hue touching the outlined one: it stands out
+    # lighter than its ground, where a shadow or the ground itself does not.
+    colour, _, given = with_patch(GREEN, 1.3)
+    assert hue_parted(colour, given) is given
+
+
+def test_two_rocks_of_hues_unlike_the_grounds_stay_as_they_are():
+    # Neither colour is the ground's: a two-coloured rock (or two rocks,
+    # which the main rock's outline is not asked to tell). Both hues lie as
+    # far from the ground's: without PART_APART and PART_GROUND the farther
+    # would be kept.
+    colour, _, given = with_patch(ORANGE, 0.6)
+    assert hue_parted(colour, given) is given
+
+
+def test_a_gray_photo_stays_as_it_is_for_the_two_colours():
+    colour, _, given = with_patch(GREEN, 0.3)
+    gray = np.repeat(colour.mean(axis=2, keepdims=True), 3, axis=2)
+    assert hue_parted(gray, given) is given
+
+
 # Development photos whose outline left out a side of the rock's hue (IoU
 # 0.572, 0.573, 0.783 and 0.811 before the side was taken in), and whose
 # outline took a part of the ground's hue (0.592, 0.578, 0.727 and 0.875
 # before it was cut off).
 SIDES = [("shaded", 4061), ("highlights", 4307), ("touching-pebbles", 4193), ("low-contrast", 4094)]
 GROUND_PARTS = [("shaded", 4117), ("vignette-blur-jpeg", 4127), ("small", 4138), ("bipolar-ground", 4001)]
+# ... and whose outline took more of a shadow or patch of the ground's hue
+# than hue_off could cut (0.187 and 0.788 before the two colours parted it;
+# 0.339 for the last, 0.921 after).
+PARTED = [("combined", 4241), ("touching-pebbles", 4320), ("combined", 4121)]
 
 
 @pytest.mark.parametrize(
-    ("condition", "index", "least"), [(*p, 0.95) for p in SIDES] + [(*p, 0.9) for p in GROUND_PARTS]
+    ("condition", "index", "least"),
+    [(*p, 0.95) for p in SIDES] + [(*p, 0.9) for p in GROUND_PARTS + PARTED[:2]],
 )
 def test_told_by_hue_the_outline_is_the_rocks(condition, index, least):
     assert outlined(condition, index) >= least
 
 
 @pytest.mark.parametrize(
-    ("step", "photo"), [("hue_on", p) for p in SIDES[:2]] + [("hue_off", p) for p in GROUND_PARTS[:2]]
+    ("step", "photo"),
+    [("hue_on", p) for p in SIDES[:2]]
+    + [("hue_off", p) for p in GROUND_PARTS[:2]]
+    + [("hue_parted", p) for p in (PARTED[0], PARTED[2])],
 )
 def test_without_the_step_the_outline_is_wrong(monkeypatch, step, photo):
     monkeypatch.setattr(finish, step, lambda colour, mask: mask)

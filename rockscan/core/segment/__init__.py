@@ -186,14 +186,22 @@ Steps (see :func:`segment`):
     the rock, the lighter of two levels, when they lie apart by about the
     rock's step above the ground, is its shaded side, taken in when the rock
     stays as compact and grows by 3-35% (``rockscan.core.segment.shade``).
-14. **A side of the rock's hue on.** Unless the fast path took the photo,
-    in colour: a side of the rock that brightness left out keeps the rock's
-    hue, where a cast shadow keeps the ground's. The pixels beside the
+14. **A part of the ground's hue parted off.** Unless the fast path took
+    the photo, in colour: an outline that took more of a cast shadow, or of a
+    patch of ground, than of the rock is cut between its two colours
+    (``split.split_colours``, the colour cue of ``--all``); when every part
+    but the one farthest in hue from the ground's (read in a ring just past
+    the outline) lies near the ground's hue, several times nearer, and no
+    lighter than the ground, the rock is that farthest part
+    (``hued.hue_parted``).
+15. **A side of the rock's hue on.** Then, in colour: a side of the rock
+    that brightness left out keeps the rock's hue, where a cast shadow
+    keeps the ground's. The pixels beside the
     outline at least ``hued.ROCK_HUE`` of the way in chromaticity from the
     ground's hue to the rock's join it, where hue tells the two apart and
     the rock stays as compact and grows by 3-150%
     (``rockscan.core.segment.hued``).
-15. **A part of the ground's hue off.** Then, in colour, a part of the
+16. **A part of the ground's hue off.** Last, in colour, a part of the
     outline that lies near the ground's hue and reaches its edge (a cast
     shadow, a patch of ground, a pebble of the ground's hue taken in with the
     rock) is cut off, the rock's hue read on the half of the outline

@@ -1,4 +1,4 @@
-"""The last steps on the chosen outline of the main rock (steps 8-13 of
+"""The last steps on the chosen outline of the main rock (steps 8-16 of
 ``rockscan.core.segment``'s module docstring).
 
 Touching pebbles and slivers are cut off (``pebbles``, ``slivers``); then,
@@ -9,13 +9,17 @@ hue), the outline moves to the photo's steepest edge where the half-way
 level missed it (``snap``; off the fast path) and out to a shaded rim's
 valley (``rim``), and, for a rock chosen among the whole pool, by the
 learnt offsets where they agree (``offset``); last, off the fast path, a
-light rock's shaded side left out is taken in (``shade``).
+light rock's shaded side left out is taken in (``shade``) and, in colour,
+the outline is told from its ground by hue (``hued``): a part of the
+ground's hue its two colours part off, a side of the rock's own hue taken
+in, a part of the ground's hue it still holds cut off.
 """
 
 from __future__ import annotations
 
 import dataclasses
 import math
+from collections.abc import Callable
 
 import numpy as np
 from numpy.typing import NDArray
@@ -24,7 +28,7 @@ from rockscan.core.segment.channels import _LUMA, _at_scale, _pyramid, _unit
 from rockscan.core.segment.confidence import offset_evidence
 from rockscan.core.segment.hued import OFF_RING as HUE_OFF_RING
 from rockscan.core.segment.hued import RING as HUE_RING
-from rockscan.core.segment.hued import ROCK_HUE, hue_off, hue_on
+from rockscan.core.segment.hued import ROCK_HUE, hue_off, hue_on, hue_parted
 from rockscan.core.segment.offset import OffsetsRead, moved_by, offsets_read
 from rockscan.core.segment.outliner import cropped
 from rockscan.core.segment.pebbles import pebbles_off
@@ -51,7 +55,7 @@ def completed(
     *,
     easy: bool,
 ) -> tuple[Segmentation, NDArray[np.float64] | None]:
-    """The chosen segmentation after steps 8-13 (``easy``: the fast path
+    """The chosen segmentation after steps 8-16 (``easy``: the fast path
     took it), and for a rock chosen among the whole pool (``choice``, its
     score's features from the choice) all of the score's features
     (``confidence``), None otherwise."""
@@ -73,9 +77,13 @@ def completed(
 
 def _sides(found: Segmentation, pixels: NDArray[np.generic]) -> Segmentation:
     """The main rock with a side its outline left out taken in, told by
-    brightness (``shade.shade_on``), then by hue (``hued.hue_on``), and a
-    part of the ground's hue it took taken off (``hued.hue_off``)."""
-    return _hue_off(_hue_on(_shade_on(found, pixels), pixels), pixels)
+    brightness (``shade.shade_on``), a part of the ground's hue its two
+    colours tell from the rock cut off (``hued.hue_parted``), a side of its
+    own hue taken in (``hued.hue_on``), and a part of the ground's hue it
+    still holds cut off (``hued.hue_off``)."""
+    # Taking the ground's part off first lets the rock's own hue be read on
+    # an outline that is mostly rock, before the side of that hue is taken in.
+    return _hue_off(_hue_on(_hue_parted(_shade_on(found, pixels), pixels), pixels), pixels)
 
 
 def _shade_on(found: Segmentation, pixels: NDArray[np.generic]) -> Segmentation:
@@ -107,14 +115,30 @@ def _hue_on(found: Segmentation, pixels: NDArray[np.generic]) -> Segmentation:
 
 def _hue_off(found: Segmentation, pixels: NDArray[np.generic]) -> Segmentation:
     """The main rock with a part of the ground's hue its outline took cut off
-    (``hued.hue_off``), read on a window of the photo's colour
-    ``hued.OFF_RING[1]`` of its radius round it; a gray photo's rock, and one
-    an alpha channel gave, stand as they are. The rock keeps its score."""
+    (``hued.hue_off``)."""
+    return _cut_in_colour(found, pixels, hue_off)
+
+
+def _hue_parted(found: Segmentation, pixels: NDArray[np.generic]) -> Segmentation:
+    """The main rock with the parts of the ground's hue its two colours tell
+    from it cut off (``hued.hue_parted``)."""
+    return _cut_in_colour(found, pixels, hue_parted)
+
+
+def _cut_in_colour(
+    found: Segmentation,
+    pixels: NDArray[np.generic],
+    step: Callable[[NDArray[np.float32], NDArray[np.bool_]], NDArray[np.bool_]],
+) -> Segmentation:
+    """The main rock cut by ``step(colour, mask)``, read on a window of the
+    photo's colour ``hued.OFF_RING[1]`` of its radius round it; a gray
+    photo's rock, and one an alpha channel gave, stand as they are. The rock
+    keeps its score."""
     read = _in_colour(found, pixels, HUE_OFF_RING[1])
     if read is None:
         return found
     window, colour, mask = read
-    kept = hue_off(colour, mask)
+    kept = step(colour, mask)
     if kept is mask:
         return found
     rock = found.rocks[0]

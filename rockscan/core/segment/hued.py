@@ -34,6 +34,21 @@ reach the outline's edge are cut off; the rock keeps the largest piece of the
 rest, opened too, when it loses ``MIN_SHRINK`` to ``MAX_SHRINK`` of its area
 and stays about as compact as it was (``shade.stays_compact``): a band of
 the rock's skin near the ground's hue cuts it in two or notches it.
+
+An outline that took more of its cast shadow, or of a patch of ground, than
+of the rock reads the shadow's hue on either half, and ``hue_off`` finds no
+rock's hue to place its pixels by. There the outline's own two colours tell
+them (``hue_parted``): the cue that parts touching rocks of different hues
+with ``--all`` (``split.split_colours``) cuts it between its colours, and
+each part's hue (its median chromaticity) is measured from the ground's (the
+ring of ``hue_off``) in units of the ring's own spread round it. When every
+part but the one farthest from the ground lies within ``PART_GROUND`` of the
+ground's hue, ``PART_APART`` times nearer than that one, and is no lighter
+than the ground (``PART_LIGHTER``: a shadow or the ground itself, where a
+lit rock of the ground's hue would stand out lighter), and the farthest
+lies at least ``PART_ROCK`` from it, the rock is the farthest part's
+largest piece. A two-coloured rock keeps both colours: neither lies near
+the ground's hue and darker than it.
 """
 
 from __future__ import annotations
@@ -45,10 +60,10 @@ from numpy.typing import NDArray
 
 from rockscan.core.segment.channels import _LEAST_LIGHT
 from rockscan.core.segment.shade import _touching, side_joined, stays_compact
-from rockscan.core.segment.split import largest_part
+from rockscan.core.segment.split import largest_part, split_colours
 from rockscan.core.segment.trace import _disk
 
-__all__ = ["ROCK_HUE", "hue_off", "hue_on"]
+__all__ = ["ROCK_HUE", "hue_off", "hue_on", "hue_parted"]
 
 #: How far from the ground's hue towards the rock's a pixel (or a part a
 #: shadow cut would take off, ``finish.rock_hued``) must lie to be the
@@ -86,6 +101,15 @@ OFF_RING = (0.1, 0.5)
 #: a shadow may be as large as the rock it joins.
 MIN_SHRINK = 0.03
 MAX_SHRINK = 0.6
+#: ``hue_parted``: a part of the outline is the ground's when its hue lies
+#: within this many of the ring's spreads of the ground's ...
+PART_GROUND = 10.0
+#: ... this many times nearer than the rock's part ...
+PART_APART = 2.0
+#: ... and no lighter than the ring by more than this (brightness in [0, 1]);
+#: the rock's part lies at least this many spreads from the ground's hue.
+PART_LIGHTER = 0.05
+PART_ROCK = 5.0
 
 
 def hue_on(colour: NDArray[np.floating], mask: NDArray[np.bool_]) -> NDArray[np.bool_]:
@@ -161,9 +185,7 @@ def hue_off(colour: NDArray[np.floating], mask: NDArray[np.bool_]) -> NDArray[np
     if area < 50:
         return mask
     radius = math.sqrt(area / math.pi)
-    outside = ndimage.distance_transform_edt(~mask)
-    chroma, has_hue = _smoothed_chromaticity(colour)
-    ring = (outside > OFF_RING[0] * radius + 1.0) & (outside <= OFF_RING[1] * radius) & has_hue
+    chroma, has_hue, ring = _off_ring(colour, mask, radius)
     inside = mask & has_hue
     if np.count_nonzero(ring) < MIN_RING or np.count_nonzero(inside) < MIN_RING:
         return mask
@@ -187,6 +209,70 @@ def hue_off(colour: NDArray[np.floating], mask: NDArray[np.bool_]) -> NDArray[np
     if not MIN_SHRINK * area <= cut <= MAX_SHRINK * area or not stays_compact(mask, kept):
         return mask
     return kept
+
+
+def hue_parted(colour: NDArray[np.floating], mask: NDArray[np.bool_]) -> NDArray[np.bool_]:
+    """A rock's mask with the parts of the ground's hue its two colours tell
+    from it cut off (module docstring).
+
+    Parameters
+    ----------
+    colour, mask : ndarray
+        As for :func:`hue_off`.
+
+    Returns
+    -------
+    (rows, cols) ndarray of bool
+        The largest piece of the rock's part, holes filled, or ``mask``
+        itself, unchanged, when the outline is of one colour or its parts
+        are not the rock and the ground's hue.
+    """
+    from scipy import ndimage
+
+    area = int(np.count_nonzero(mask))
+    if area < 50:
+        return mask
+    parts = split_colours(mask, np.asarray(colour, np.float32))
+    if len(parts) < 2:
+        return mask
+    chroma, has_hue, ring = _off_ring(colour, mask, math.sqrt(area / math.pi))
+    if np.count_nonzero(ring) < MIN_RING:
+        return mask
+    ground = np.median(chroma[ring], axis=0)
+    spread = max(float(np.median(np.hypot(*np.moveaxis(chroma[ring] - ground, -1, 0)))), 1e-6)
+    brightness = np.mean(colour, axis=-1)
+    ground_level = float(np.mean(brightness[ring]))
+    apart = []
+    for part in parts:
+        hued = part & has_hue
+        # A part too dark for a hue is placed on the ground's: it may be a shadow.
+        hue = np.median(chroma[hued], axis=0) if np.count_nonzero(hued) >= MIN_CORE else ground
+        apart.append(float(np.hypot(*(hue - ground))) / spread)
+    rock = int(np.argmax(apart))
+    if apart[rock] < PART_ROCK:
+        return mask
+    for index, part in enumerate(parts):
+        if index != rock and not (
+            apart[index] <= PART_GROUND
+            and PART_APART * apart[index] <= apart[rock]
+            and float(np.mean(brightness[part])) <= ground_level + PART_LIGHTER
+        ):
+            return mask
+    kept = largest_part(parts[rock])
+    return mask if kept is None else ndimage.binary_fill_holes(kept)
+
+
+def _off_ring(
+    colour: NDArray[np.floating], mask: NDArray[np.bool_], radius: float
+) -> tuple[NDArray[np.float64], NDArray[np.bool_], NDArray[np.bool_]]:
+    """The smoothed chromaticity, where a pixel has a hue, and the ring of
+    ground ``OFF_RING`` radii (plus a pixel) past the mask where it has one."""
+    from scipy import ndimage
+
+    outside = ndimage.distance_transform_edt(~mask)
+    chroma, has_hue = _smoothed_chromaticity(colour)
+    ring = (outside > OFF_RING[0] * radius + 1.0) & (outside <= OFF_RING[1] * radius) & has_hue
+    return chroma, has_hue, ring
 
 
 def _smoothed_chromaticity(colour: NDArray[np.floating]) -> tuple[NDArray[np.float64], NDArray[np.bool_]]:
