@@ -1,5 +1,6 @@
 """A rock's outline told by hue: a side of the rock's own hue, left out of its
-outline, taken back in, and a part of the ground's hue it took taken off
+outline, taken back in, and a part of the ground's hue it took taken off, by
+placing each pixel between the two hues or by the outline's two colours
 (``rockscan.core.segment.hued`` and its use in ``rockscan.core.segment.finish``).
 
 The model photos are the lit dome of ``test_segment_shadow`` in colour
@@ -128,7 +129,7 @@ def with_patch(
     hue: np.ndarray, level: float, azimuth: float = 200.0
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """A small dome and, joined to it, a disc larger than the dome of ``hue``
-    at ``level`` times the lit ground's brightness: the photo, the dome and
+    at ``level`` times the ground's brightness there: the photo, the dome and
     the outline of both, waisted where the two discs meet (as an outline that
     took a long shadow, or a patch of ground, is)."""
     colour, rock, _ = in_colour(PURPLE, GREEN, radius=35.0, azimuth=np.radians(azimuth))

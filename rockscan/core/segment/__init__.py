@@ -191,7 +191,7 @@ Steps (see :func:`segment`):
     patch of ground, than of the rock is cut between its two colours
     (``split.split_colours``, the colour cue of ``--all``); when every part
     but the one farthest in hue from the ground's (read in a ring just past
-    the outline) lies near the ground's hue, several times nearer, and no
+    the outline) lies near the ground's hue, at least twice as near, and no
     lighter than the ground, the rock is that farthest part
     (``hued.hue_parted``).
 15. **A side of the rock's hue on.** Then, in colour: a side of the rock
