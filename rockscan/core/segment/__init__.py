@@ -193,7 +193,7 @@ Steps (see :func:`segment`):
     but the one farthest in hue from the ground's (read in a ring just past
     the outline) lies near the ground's hue, at least twice as near, and no
     lighter than the ground, the rock is that farthest part
-    (``hued.hue_parted``).
+    (``hued.hue_parted``), and steps 8-11 are read again on its outline.
 15. **A side of the rock's hue on.** Then, in colour: a side of the rock
     that brightness left out keeps the rock's hue, where a cast shadow
     keeps the ground's. The pixels beside the

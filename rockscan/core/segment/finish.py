@@ -121,8 +121,12 @@ def _hue_off(found: Segmentation, pixels: NDArray[np.generic]) -> Segmentation:
 
 def _hue_parted(found: Segmentation, pixels: NDArray[np.generic]) -> Segmentation:
     """The main rock with the parts of the ground's hue its two colours tell
-    from it cut off (``hued.hue_parted``)."""
-    return _cut_in_colour(found, pixels, hue_parted)
+    from it cut off (``hued.hue_parted``), and the cut outline finished again
+    (steps 8-11, :func:`finished`)."""
+    parted = _cut_in_colour(found, pixels, hue_parted)
+    # The colours cut along a line the outline never ran on: touching pebbles,
+    # the shadow's rise, the steepest edge and a rim are read there afresh.
+    return parted if parted is found else finished(parted, pixels)
 
 
 def _cut_in_colour(
