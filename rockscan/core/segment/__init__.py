@@ -148,7 +148,9 @@ Steps (see :func:`segment`):
    along rays from the rock's centre, rises a second time inside the
    outline (from the rock's shaded rim to the flat, darkened ground of the
    shadow) on one smooth arc away from the rock's lit side, what lies beyond
-   that rise is cut off (``rockscan.core.segment.shadow``). Beside a light
+   that rise is cut off (``rockscan.core.segment.shadow``). A long shadow,
+   of which those rays see only a wedge, floods from that wedge up to its
+   edge with the rock (a watershed of the photo's slope). Beside a light
    rock that a cue outlined with its shadow, the profile instead falls, last,
    from the rock's rim to a band well darker than the ground that keeps the
    ground's grain; what lies beyond that fall goes the same way. In colour,

@@ -30,6 +30,23 @@ goes, unless that would lengthen the outline (``LONGER``): a cut along a
 rock's edge shortens it, while rays that graze the outline (near a sharp
 corner, along a star's arm) would notch it.
 
+A long shadow, half the rock's size or more (a low sun), defeats the rays.
+Cast from the centre of rock and shadow together, near the edge between
+them, they cross that edge on part of it only, and a cut along that part
+notches the outline; the shadow's light also draws the lit side found
+towards it. There, beside a rock darker than the ground, the shadow the arc
+shows seeds a flood of the photo's slope inside the outline (a watershed),
+against seeds of rock on the far side of the centre: the shadow's flat band
+fills up to its edge with the rock wherever it reaches. The cut is kept when
+the rock keeps at least ``GROWN_KEEP`` of the outline, the cut runs along an
+edge (its median slope at least ``GROWN_EDGE`` of the step per pixel: a
+flood from a pit that stopped in the rock's own smooth shading does not),
+cuts off a part about as flat as a band (interquartile range under
+``GROWN_FLAT`` of the step: half a textured rock is not), leaves the outline
+no longer (``LONGER``), and leaves the shadow away from the lit side of rock
+and shadow together or, where their light misleads, of the rock that
+remains.
+
 Beside a light rock the shadow is darker than the ground and never looks
 like rock, but a cue that takes in whatever differs from the lit ground
 (GrabCut from a box, a basin of the gradient) runs round both. There the
@@ -130,6 +147,20 @@ LIGHT_FALL, LIGHT_DEEP, LIGHT_TEXTURE = 0.6, 0.6, 0.25
 LONGER = 1.05
 #: Smallest region, in pixels, that is looked at.
 MIN_AREA = 50
+#: A shadow seen on part of its arc only, flooded from there: how far off the
+#: rise on the arc, and off the outline, its seeds lie (pixels); where the
+#: rock's seeds begin on the far side of the centre (a share of the rock's
+#: equivalent radius); and the least median slope along the cut, as a share of
+#: the step from the rock's level to the ground's per pixel (of the log
+#: brightness smoothed by a pixel, by Sobel's operator).
+GROWN_GAP = 2.0
+GROWN_ROCK = 0.3
+GROWN_EDGE = 0.5
+#: Largest interquartile range of the part cut off, as a share of the step.
+GROWN_FLAT = 0.45
+#: Least share of the outline's area the rock keeps: a flood that took most
+#: of it ran into the rock (from a pit).
+GROWN_KEEP = 0.4
 #: Area of an outline inside the chosen one, as a share of the chosen's, for
 #: it to be the rock without a shadow the chosen one took in.
 INNER_SHARE = (0.4, 0.92)
@@ -194,21 +225,86 @@ def shadow_off(
     arc, limit, depth = edges
     if not _smooth_arc(depth):
         return mask
-    if not _away_from_light(gray, mask8, centre, angles[arc]):
+    start = limit * SPACING + 0.5
+    away = _away_from_light(gray, mask8, centre, angles[arc])
+    if away:
+        kept = mask & (_beyond(mask.shape, centre, angles[arc], start, reach) == 0)
+        if cv2.countNonZero(kept.view(np.uint8)) == area:
+            return mask
+        kept = largest_part(kept)
+        if kept is None:
+            return mask
+        kept = _fill_holes(kept)
+        # Cut off along the rock's edge, a shadow leaves an outline no longer
+        # than before; a cut that lengthens it has notched the rock (teeth at a
+        # sharp corner, a slit along an arm), where rays cross its edge obliquely.
+        if _perimeter(kept) <= LONGER * _perimeter(mask):
+            return kept
+    # A long shadow: the rays cross its edge with the rock on part of it
+    # only, and its light weighs on the lit side found.
+    return _grown_off(gray, mask, region, angles[arc], start, reach, away) if step > 0 else mask
+
+
+def _grown_off(
+    gray: NDArray[np.floating],
+    mask: NDArray[np.bool_],
+    region: Region,
+    angles: NDArray[np.float64],
+    limit: NDArray[np.float64],
+    reach: float,
+    away: bool,
+) -> NDArray[np.bool_]:
+    """The mask with a shadow seen on part of its arc only taken off, as far as
+    the shadow reaches (module docstring); ``mask`` itself when the rock would
+    keep too little of it, the cut does not follow an edge, the part cut off
+    is not flat, or the outline would lengthen.
+
+    ``angles`` and ``limit`` are the arc's rays and where on each the rock
+    ends (pixels from the centre); ``away``, whether the arc lies away from
+    the lit side of rock and shadow together.
+    """
+    import cv2
+    from skimage.segmentation import watershed
+
+    mask8, centre, area, (rock_level, ground, _) = region
+    step = ground - rock_level
+    radius = math.sqrt(area / math.pi)
+    inside = cv2.distanceTransform(mask8, cv2.DIST_L2, 3)
+    # Seeds a little off the rock's edge and off the outline's own blurred
+    # edge: the shadow beyond the rise on the arc, the rock on the far side
+    # of the centre, away from the arc.
+    shadow = (_beyond(mask.shape, centre, angles, limit + GROWN_GAP, reach) > 0) & (inside > GROWN_GAP)
+    rock = _beyond(mask.shape, centre, angles + math.pi, np.full(angles.size, GROWN_ROCK * radius), reach) > 0
+    rock &= (inside > max(GROWN_GAP, 0.1 * radius)) & ~shadow
+    if np.count_nonzero(shadow) < MIN_LEFT or np.count_nonzero(rock) < MIN_LEFT:
         return mask
-    kept = mask & (_beyond(mask.shape, centre, angles[arc], limit * SPACING + 0.5, reach) == 0)
-    if cv2.countNonZero(kept.view(np.uint8)) == area:
-        return mask
-    kept = largest_part(kept)
+    smooth = cv2.GaussianBlur(gray.astype(np.float32), (0, 0), 1.0)
+    slope = cv2.magnitude(cv2.Sobel(smooth, cv2.CV_32F, 1, 0), cv2.Sobel(smooth, cv2.CV_32F, 0, 1))
+    markers = rock.astype(np.int32) + 2 * shadow.astype(np.int32)
+    kept = largest_part(mask & (watershed(slope, markers, mask=mask) != 2))
     if kept is None:
         return mask
     kept = _fill_holes(kept)
-    # Cut off along the rock's edge, a shadow leaves an outline no longer
-    # than before; a cut that lengthens it has notched the rock (teeth at a
-    # sharp corner, a slit along an arm), where rays cross its edge obliquely.
+    cut = mask & ~kept
+    if not cut.any() or np.count_nonzero(kept) < GROWN_KEEP * area:
+        return mask
+    # The line between rock and shadow is an edge; a flood that stopped in
+    # the rock's own smooth shading (a pit, a fold) is not.
+    kept8 = kept.astype(np.uint8)
+    line = (kept8 > cv2.erode(kept8, np.ones((3, 3), np.uint8))) & (inside > GROWN_GAP)
+    if not line.any() or float(np.median(slope[line])) < GROWN_EDGE * step:
+        return mask
+    # A shadow is the ground darkened, flat beside a textured rock's own
+    # darker half.
+    if _median_and_iqr(gray, cut)[1] > GROWN_FLAT * step:
+        return mask
     if _perimeter(kept) > LONGER * _perimeter(mask):
         return mask
-    return kept
+    if away:
+        return kept
+    moments = cv2.moments(kept8, binaryImage=True)
+    kept_centre = (moments["m01"] / moments["m00"], moments["m10"] / moments["m00"])
+    return kept if _away_from_light(gray, kept8, kept_centre, angles) else mask
 
 
 #: A region as 0/1 bytes, its centre (row, col), its area and its levels
