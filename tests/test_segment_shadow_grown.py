@@ -2,7 +2,7 @@
 (``rockscan.core.segment.shadow``).
 
 The photos are the physical model of ``test_segment_shadow.py`` with the sun
-low: the dome's shadow is as long as the rock, or longer.
+low: the dome's shadow is half the rock's size or more.
 """
 
 from __future__ import annotations
