@@ -153,7 +153,11 @@ Steps (see :func:`segment`):
    edge with the rock (a watershed of the photo's slope). Beside a light
    rock that a cue outlined with its shadow, the profile instead falls, last,
    from the rock's rim to a band well darker than the ground that keeps the
-   ground's grain; what lies beyond that fall goes the same way. In colour,
+   ground's grain; what lies beyond that fall goes the same way. Under
+   little sky light, where the outline is both lighter and darker than the
+   ground (a light rock and its near-black shadow), its darkest part, when
+   it keeps the ground's grain and lit ground lies past it, floods up to
+   its edge with the rock the same way. In colour,
    a part to be cut that lies at least ``hued.ROCK_HUE`` of the way in hue
    from the ground's chromaticity to the rest of the rock's is a darker band
    of the rock itself, and stays: a shadow is darkened ground, of the

@@ -62,6 +62,23 @@ shading, smooth where the ground is textured. Along the arc, the median
 fall must reach ``LIGHT_FALL`` of the step; the arc, its smoothness, the
 side away from the light and the cut are as for a dark rock.
 
+Under little sky light a light rock's shadow is near black, and rock and
+shadow together make an outline both lighter and darker than the ground:
+its core's median may lie near the ground's level or below it, so that the
+rays take it for a dark rock or see no fall, and on a grainy ground the
+fall from the rock's rim hides in the grain. There, when at least
+``TWO_SHARES`` of the outline lies that far below the ground and above it,
+the darker class (Otsu's) of its largest dark part seeds a watershed of the
+photo's slope against seeds of rock (lighter than that class by
+``TWO_SEED`` of its depth below the ground). The cut is kept when the rock
+keeps at least ``GROWN_KEEP`` of the outline, the cut runs along an edge
+(``GROWN_EDGE``), the part cut off keeps the ground's grain
+(``TWO_GRAIN``: a smooth facet turned from the light does not) without
+being more varied than grain (``TWO_FLAT``), the ground just past it is
+lit (``TWO_PAST``: past a light rock's own shaded side lies its cast
+shadow, darker still), the outline gets no longer, and the part lies away
+from the rock's lit side.
+
 A rock lighter than its own shadow (mid-toned, or textured with light
 patches: the shadow is the ground in sky light alone) shows no rise from
 rim to shadow, and the rays find nothing. There another cue may have drawn
@@ -161,6 +178,22 @@ GROWN_FLAT = 0.45
 #: Least share of the outline's area the rock keeps: a flood that took most
 #: of it ran into the rock (from a pit).
 GROWN_KEEP = 0.4
+#: A region both lighter and darker than the ground (a light rock and its
+#: black shadow): how far below the ground's level (log brightness, and in
+#: units of the ground's spread) and above it a pixel counts as dark or
+#: light; the least shares of the region's area that are dark and light;
+#: where the rock's seeds begin, as a share of the way from the shadow's
+#: level up to the ground's; and the least and largest interquartile range
+#: of the part cut off, in units of the ground's spread.
+TWO_DARK, TWO_NOISE, TWO_LIGHT = 0.3, 3.0, 0.1
+TWO_SHARES = (0.1, 0.15)
+TWO_SEED = 0.5
+TWO_GRAIN, TWO_FLAT = 0.5, 3.0
+#: How far past the part cut off the ground is looked at (pixels), and how
+#: much lighter than that part it must be there, as a share of its depth
+#: below the ground's level.
+TWO_RING = 4
+TWO_PAST = 0.5
 #: Area of an outline inside the chosen one, as a share of the chosen's, for
 #: it to be the rock without a shadow the chosen one took in.
 INNER_SHARE = (0.4, 0.92)
@@ -202,12 +235,19 @@ def shadow_off(
         The rock without its shadow: one 4-connected piece, holes filled.
         ``mask`` itself, unchanged, when no shadow was found.
     """
-    import cv2
-
     if region is None:
         region = measured_region(gray, mask, MIN_AREA)
     if region is None:
         return mask
+    kept = _rays_off(gray, mask, region)
+    return kept if kept is not mask else _two_sided_off(gray, mask, region)
+
+
+def _rays_off(gray: NDArray[np.floating], mask: NDArray[np.bool_], region: Region) -> NDArray[np.bool_]:
+    """The mask with the shadow the rays show taken off, or flooded from
+    where they show it (module docstring); ``mask`` itself when they show none."""
+    import cv2
+
     mask8, centre, area, (rock, ground, noise) = region
     step = ground - rock
     if step == 0:
@@ -264,7 +304,6 @@ def _grown_off(
     the lit side of rock and shadow together.
     """
     import cv2
-    from skimage.segmentation import watershed
 
     mask8, centre, area, (rock_level, ground, _) = region
     step = ground - rock_level
@@ -278,21 +317,13 @@ def _grown_off(
     rock &= (inside > max(GROWN_GAP, 0.1 * radius)) & ~shadow
     if np.count_nonzero(shadow) < MIN_LEFT or np.count_nonzero(rock) < MIN_LEFT:
         return mask
-    smooth = cv2.GaussianBlur(gray.astype(np.float32), (0, 0), 1.0)
-    slope = cv2.magnitude(cv2.Sobel(smooth, cv2.CV_32F, 1, 0), cv2.Sobel(smooth, cv2.CV_32F, 0, 1))
-    markers = rock.astype(np.int32) + 2 * shadow.astype(np.int32)
-    kept = largest_part(mask & (watershed(slope, markers, mask=mask) != 2))
-    if kept is None:
+    flooded = _flooded(gray, mask, rock, shadow, inside, area)
+    if flooded is None:
         return mask
-    kept = _fill_holes(kept)
-    cut = mask & ~kept
-    if not cut.any() or np.count_nonzero(kept) < GROWN_KEEP * area:
-        return mask
+    kept, cut, slope_along = flooded
     # The line between rock and shadow is an edge; a flood that stopped in
     # the rock's own smooth shading (a pit, a fold) is not.
-    kept8 = kept.astype(np.uint8)
-    line = (kept8 > cv2.erode(kept8, np.ones((3, 3), np.uint8))) & (inside > GROWN_GAP)
-    if not line.any() or float(np.median(slope[line])) < GROWN_EDGE * step:
+    if slope_along < GROWN_EDGE * step:
         return mask
     # A shadow is the ground darkened, flat beside a textured rock's own
     # darker half.
@@ -302,9 +333,115 @@ def _grown_off(
         return mask
     if away:
         return kept
-    moments = cv2.moments(kept8, binaryImage=True)
-    kept_centre = (moments["m01"] / moments["m00"], moments["m10"] / moments["m00"])
-    return kept if _away_from_light(gray, kept8, kept_centre, angles) else mask
+    kept8 = kept.astype(np.uint8)
+    return kept if _away_from_light(gray, kept8, _centre(kept8), angles) else mask
+
+
+def _two_sided_off(gray: NDArray[np.floating], mask: NDArray[np.bool_], region: Region) -> NDArray[np.bool_]:
+    """The mask with a black shadow beside a light rock taken off, where the
+    region is both lighter and darker than the ground (module docstring);
+    ``mask`` itself when it is not, or when the cut fails a rule."""
+    import cv2
+
+    mask8, _, area, (_, ground, noise) = region
+    inside = cv2.distanceTransform(mask8, cv2.DIST_L2, 3)
+    core = inside > GROWN_GAP
+    dark = core & (gray < ground - max(TWO_DARK, TWO_NOISE * noise))
+    light = core & (gray > ground + max(TWO_LIGHT, noise))
+    if np.count_nonzero(dark) < TWO_SHARES[0] * area or np.count_nonzero(light) < TWO_SHARES[1] * area:
+        return mask
+    shadow = largest_part(dark)
+    if shadow is None:
+        return mask
+    # Imported here: most outlines are not two-sided and never need it.
+    from skimage.filters import threshold_otsu
+
+    shadow8 = shadow.astype(np.uint8)
+    # The dark part may hold the rock's shaded side beside its shadow; the
+    # shadow is the darker of the two (a light rock's albedo is the higher).
+    seeds = cv2.distanceTransform(shadow8, cv2.DIST_L2, 3) > GROWN_GAP
+    seeds &= gray <= threshold_otsu(gray[shadow])
+    if np.count_nonzero(seeds) < MIN_LEFT:
+        return mask
+    level = float(np.median(gray[seeds]))
+    # Rock seeds: lighter than the shadow by a share of its depth below the
+    # ground (a light rock's shaded side is, by the ratio of the albedos),
+    # and a little off the shadow's seeds.
+    rock = core & (gray > level + TWO_SEED * (ground - level))
+    rock &= cv2.dilate(seeds.astype(np.uint8), np.ones((5, 5), np.uint8)) == 0
+    if np.count_nonzero(rock) < MIN_LEFT:
+        return mask
+    flooded = _flooded(gray, mask, rock, seeds, inside, area)
+    if flooded is None:
+        return mask
+    kept, cut, slope_along = flooded
+    depth = ground - float(np.median(gray[cut]))
+    if slope_along < GROWN_EDGE * depth:
+        return mask
+    # The shadow is the ground darkened: its grain is the ground's, no
+    # coarser (the rock's own shaded side carries its texture and shading)
+    # and no finer (a smooth facet of the rock turned from the light has none).
+    flat = cut & core
+    if not flat.any() or not TWO_GRAIN * noise <= _median_and_iqr(gray, flat)[1] <= TWO_FLAT * noise:
+        return mask
+    # Past a shadow's outer edge the ground is lit; past a light rock's own
+    # shaded side lies its cast shadow, darker still.
+    cut8 = cut.astype(np.uint8)
+    disc = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * TWO_RING + 1, 2 * TWO_RING + 1))
+    past = (cv2.dilate(cut8, disc) > 0) & (cv2.dilate(mask8, np.ones((3, 3), np.uint8)) == 0)
+    if not past.any() or float(np.median(gray[past])) - (ground - depth) < TWO_PAST * depth:
+        return mask
+    if _perimeter(kept) > LONGER * _perimeter(mask):
+        return mask
+    kept8 = kept.astype(np.uint8)
+    kept_centre, cut_centre = _centre(kept8), _centre(cut8)
+    towards = math.atan2(cut_centre[0] - kept_centre[0], cut_centre[1] - kept_centre[1])
+    return kept if _away_from_light(gray, kept8, kept_centre, np.array([towards])) else mask
+
+
+def _flooded(
+    gray: NDArray[np.floating],
+    mask: NDArray[np.bool_],
+    rock: NDArray[np.bool_],
+    shadow: NDArray[np.bool_],
+    inside: NDArray[np.float32],
+    area: float,
+) -> tuple[NDArray[np.bool_], NDArray[np.bool_], float] | None:
+    """A watershed of the photo's slope inside ``mask`` from seeds of rock
+    and of shadow: the rock (its largest piece, holes filled), the part cut
+    off, and the median slope along the line between them, away from the
+    outline's own blurred edge (``inside``: distance to the outline). None
+    when nothing is cut, the rock would keep under ``GROWN_KEEP`` of
+    ``area``, or no part of that line lies away from the outline's edge.
+
+    The slope is Sobel's magnitude of ``gray`` smoothed by a pixel.
+    """
+    import cv2
+    from skimage.segmentation import watershed
+
+    smooth = cv2.GaussianBlur(gray.astype(np.float32), (0, 0), 1.0)
+    slope = cv2.magnitude(cv2.Sobel(smooth, cv2.CV_32F, 1, 0), cv2.Sobel(smooth, cv2.CV_32F, 0, 1))
+    markers = rock.astype(np.int32) + 2 * shadow.astype(np.int32)
+    kept = largest_part(mask & (watershed(slope, markers, mask=mask) != 2))
+    if kept is None:
+        return None
+    kept = _fill_holes(kept)
+    cut = mask & ~kept
+    if not cut.any() or np.count_nonzero(kept) < GROWN_KEEP * area:
+        return None
+    kept8 = kept.astype(np.uint8)
+    line = (kept8 > cv2.erode(kept8, np.ones((3, 3), np.uint8))) & (inside > GROWN_GAP)
+    if not line.any():
+        return None
+    return kept, cut, float(np.median(slope[line]))
+
+
+def _centre(mask8: NDArray[np.uint8]) -> tuple[float, float]:
+    """The centre (row, col) of a non-empty region of 0/1 bytes."""
+    import cv2
+
+    moments = cv2.moments(mask8, binaryImage=True)
+    return moments["m01"] / moments["m00"], moments["m10"] / moments["m00"]
 
 
 #: A region as 0/1 bytes, its centre (row, col), its area and its levels
