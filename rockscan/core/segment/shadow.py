@@ -375,8 +375,9 @@ def _two_sided_off(gray: NDArray[np.floating], mask: NDArray[np.bool_], region: 
     if flooded is None:
         return mask
     kept, cut, slope_along = flooded
+    # A shadow is darker than the ground it lies on.
     depth = ground - float(np.median(gray[cut]))
-    if slope_along < GROWN_EDGE * depth:
+    if depth <= 0 or slope_along < GROWN_EDGE * depth:
         return mask
     # The shadow is the ground darkened: its grain is the ground's, no
     # coarser (the rock's own shaded side carries its texture and shading)
