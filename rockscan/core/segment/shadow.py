@@ -67,17 +67,17 @@ shadow together make an outline both lighter and darker than the ground:
 its core's median may lie near the ground's level or below it, so that the
 rays take it for a dark rock or see no fall, and on a grainy ground the
 fall from the rock's rim hides in the grain. There, when at least
-``TWO_SHARES`` of the outline lies that far below the ground and above it,
-the darker class (Otsu's) of its largest dark part seeds a watershed of the
-photo's slope against seeds of rock (lighter than that class by
-``TWO_SEED`` of its depth below the ground). The cut is kept when the rock
-keeps at least ``GROWN_KEEP`` of the outline, the cut runs along an edge
-(``GROWN_EDGE``), the part cut off keeps the ground's grain
-(``TWO_GRAIN``: a smooth facet turned from the light does not) without
-being more varied than grain (``TWO_FLAT``), the ground just past it is
-lit (``TWO_PAST``: past a light rock's own shaded side lies its cast
-shadow, darker still), the outline gets no longer, and the part lies away
-from the rock's lit side.
+``TWO_SHARES`` of the outline lies well below the ground's level and above
+it (``TWO_DARK``, ``TWO_LIGHT``), the darker class (Otsu's) of its largest
+dark part seeds a watershed of the photo's slope against seeds of rock
+(lighter than that class by ``TWO_SEED`` of its depth below the ground).
+The cut is kept when the rock keeps at least ``GROWN_KEEP`` of the outline,
+the cut runs along an edge (``GROWN_EDGE``), the part cut off is darker than
+the ground and keeps the ground's grain (``TWO_GRAIN``: a smooth facet
+turned from the light does not) without being more varied than grain
+(``TWO_FLAT``), the ground just past it is lit (``TWO_PAST``: past a light
+rock's own shaded side lies its cast shadow, darker still), the outline gets
+no longer, and the part lies away from the rock's lit side.
 
 A rock lighter than its own shadow (mid-toned, or textured with light
 patches: the shadow is the ground in sky light alone) shows no rise from
