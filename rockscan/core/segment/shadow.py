@@ -564,8 +564,7 @@ def shadow_left_out(
         darker = level <= rock - DARKER * (ground - rock) and level >= ground + math.log(SKY)
         if not (rock < ground and darker and spread <= min(rock_spread, GROUND_LIKE * ground_spread)):
             continue
-        moments = cv2.moments(inner8, binaryImage=True)
-        centre = (moments["m01"] / size, moments["m10"] / size)
+        centre = _centre(inner8)
         ys, xs = np.nonzero(left)
         towards = np.array([math.atan2(ys.mean() - centre[0], xs.mean() - centre[1])])
         if _away_from_light(gray, inner8, centre, towards):
