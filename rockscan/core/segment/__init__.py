@@ -213,6 +213,13 @@ Steps (see :func:`segment`):
     rock) is cut off, the rock's hue read on the half of the outline
     farthest from the ground's, where the rest stays as compact and loses
     3-60% of its area (``hued.hue_off``).
+17. **A clipped face on.** Last, off the fast path: a light rock's face
+    turned to a strong light may be brighter than the sensor records, every
+    channel at its ceiling, and white whatever the rock's colour; an outline
+    drawn along the rock's hue leaves it out. The clipped pixels that touch
+    the outline, grown to half-way in brightness from the ground to the
+    ceiling, join the rock where it stays as compact and grows by 3-45%
+    (``rockscan.core.segment.clipped``).
 
 Known limits: a shadow whose edge with the rock's shaded side the photo does
 not show (the two as dark) stays with a dark rock; a light rock's smooth

@@ -1,4 +1,4 @@
-"""The last steps on the chosen outline of the main rock (steps 8-16 of
+"""The last steps on the chosen outline of the main rock (steps 8-17 of
 ``rockscan.core.segment``'s module docstring).
 
 Touching pebbles and slivers are cut off (``pebbles``, ``slivers``); then,
@@ -12,7 +12,8 @@ learnt offsets where they agree (``offset``); last, off the fast path, a
 light rock's shaded side left out is taken in (``shade``) and, in colour,
 the outline is told from its ground by hue (``hued``): a part of the
 ground's hue its two colours part off, a side of the rock's own hue taken
-in, a part of the ground's hue it still holds cut off.
+in, a part of the ground's hue it still holds cut off; and a face the
+sensor clipped white is taken in (``clipped``).
 """
 
 from __future__ import annotations
@@ -25,6 +26,9 @@ import numpy as np
 from numpy.typing import NDArray
 
 from rockscan.core.segment.channels import _LUMA, _at_scale, _pyramid, _unit
+from rockscan.core.segment.clipped import MIN_CLIPPED as CLIPPED_LEAST
+from rockscan.core.segment.clipped import REACH as CLIPPED_REACH
+from rockscan.core.segment.clipped import clipped_on
 from rockscan.core.segment.confidence import offset_evidence
 from rockscan.core.segment.hued import OFF_RING as HUE_OFF_RING
 from rockscan.core.segment.hued import RING as HUE_RING
@@ -55,7 +59,7 @@ def completed(
     *,
     easy: bool,
 ) -> tuple[Segmentation, NDArray[np.float64] | None]:
-    """The chosen segmentation after steps 8-16 (``easy``: the fast path
+    """The chosen segmentation after steps 8-17 (``easy``: the fast path
     took it), and for a rock chosen among the whole pool (``choice``, its
     score's features from the choice) all of the score's features
     (``confidence``), None otherwise."""
@@ -79,11 +83,59 @@ def _sides(found: Segmentation, pixels: NDArray[np.generic]) -> Segmentation:
     """The main rock with a side its outline left out taken in, told by
     brightness (``shade.shade_on``), a part of the ground's hue its two
     colours tell from the rock cut off (``hued.hue_parted``), a side of its
-    own hue taken in (``hued.hue_on``), and a part of the ground's hue it
-    still holds cut off (``hued.hue_off``)."""
+    own hue taken in (``hued.hue_on``), a part of the ground's hue it still
+    holds cut off (``hued.hue_off``), and a face the sensor clipped taken in
+    (``clipped.clipped_on``)."""
     # Taking the ground's part off first lets the rock's own hue be read on
     # an outline that is mostly rock, before the side of that hue is taken in.
-    return _hue_off(_hue_on(_hue_parted(_shade_on(found, pixels), pixels), pixels), pixels)
+    hued = _hue_off(_hue_on(_hue_parted(_shade_on(found, pixels), pixels), pixels), pixels)
+    # Last: the hue steps read white, a clipped face's colour, as the ground's.
+    return _clipped_on(hued, pixels)
+
+
+def _clipped_on(found: Segmentation, pixels: NDArray[np.generic]) -> Segmentation:
+    """The main rock with a face the sensor clipped, left out of its outline,
+    taken in (``clipped.clipped_on``), read on a window of the photo
+    ``clipped.REACH`` of its radius round it; the rock keeps its score."""
+    if found.channel == "alpha":
+        return found
+    window = _rock_box(found, CLIPPED_REACH)
+    # Most photos clip nothing round the rock: a look at one photo pixel in
+    # each grid pixel's block spares reading the window.
+    if not _nearly_clipped(pixels, window, found.scale_rowcol):
+        return found
+    colour = _working_colour(pixels, window, found.scale_rowcol)
+    if colour is None:
+        colour = _working_gray(pixels, window, found.scale_rowcol)
+    mask = placed(found.rocks[0], window, found.scale_rowcol)
+    if mask is None:
+        return found
+    grown = clipped_on(colour, mask)
+    return found if grown is mask else _main_grown(found, window, mask, grown)
+
+
+def _nearly_clipped(
+    pixels: NDArray[np.generic], window: tuple[int, int, int, int], scale_rowcol: tuple[float, float]
+) -> bool:
+    """Whether the photo under a window of the working grid has pixels near
+    the sensor's ceiling (``NEARLY_CLIPPED``), one photo pixel read in each grid
+    pixel's block: a grid pixel at the ceiling is a block of such pixels."""
+    r0, r1, c0, c1 = window
+    sr, sc = scale_rowcol
+    photo = np.asarray(pixels)
+    step = max(1, math.floor(min(sr, sc)))
+    sample = photo[math.floor(r0 * sr) : round(r1 * sr) : step, math.floor(c0 * sc) : round(c1 * sc) : step]
+    if sample.ndim == 3 and sample.shape[2] >= 3:
+        # Pairwise, not ``max(axis=2)``: a reduction over three values a pixel is slow.
+        sample = np.maximum(np.maximum(sample[..., 0], sample[..., 1]), sample[..., 2])
+    elif sample.ndim == 3:
+        sample = sample[..., 0]
+    return np.count_nonzero(_unit(sample, photo.dtype) >= NEARLY_CLIPPED) >= CLIPPED_LEAST
+
+
+#: A photo pixel this near the ceiling may lie in a grid pixel at it (the
+#: grid's pixel averages a block of the photo's; ``clipped.CEILING``).
+NEARLY_CLIPPED = 0.95
 
 
 def _shade_on(found: Segmentation, pixels: NDArray[np.generic]) -> Segmentation:
