@@ -165,3 +165,24 @@ def test_the_outline_is_the_rocks(condition, index):
 def test_without_the_step_the_face_stays_out(monkeypatch):
     monkeypatch.setattr(finish, "clipped_on", lambda colour, mask: mask)
     assert outlined(*CLIPPED[0]) < 0.8
+
+
+@pytest.mark.parametrize("dtype", [np.uint8, np.uint16, np.float32])
+@pytest.mark.parametrize("scale", [1.0, 2.5, 4.0])
+def test_the_look_before_reading_sees_a_face_a_grid_pixel_would_hold(dtype, scale):
+    # A grid pixel at the ceiling averages a block of photo pixels near it:
+    # one photo pixel read in each block finds it, wherever the block lies.
+    top = 1.0 if dtype == np.float32 else np.iinfo(dtype).max
+    photo = np.full((120, 160, 3), 0.5 * top, dtype)
+    window = (10, 30, 12, 36)  # rows r0:r1, cols c0:c1 of the grid
+    assert not finish._nearly_clipped(photo, window, (scale, scale))
+    for corner in [(0, 0), (1, 2), (3, 1)]:
+        lit = photo.copy()
+        # A 5 x 5 patch of grid pixels at the ceiling inside the window, in photo pixels.
+        r, c = round((14 + corner[0]) * scale), round((20 + corner[1]) * scale)
+        lit[r : r + round(5 * scale), c : c + round(5 * scale)] = top
+        assert finish._nearly_clipped(lit, window, (scale, scale))
+        # Outside the window it is not looked at.
+        far = photo.copy()
+        far[:8, :8] = top
+        assert not finish._nearly_clipped(far, window, (scale, scale))

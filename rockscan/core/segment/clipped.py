@@ -1,4 +1,4 @@
-"""A light rock's side that the sensor clipped, left out of its outline, and taking it back in.
+"""A rock's face that the sensor clipped white, left out of its outline, and taking it back in.
 
 Under a low, strong light a rock's face turned to it can be brighter than
 the sensor records: every channel sits at its ceiling and the face is white,
@@ -18,9 +18,8 @@ grown by ``shade.MIN_GROWTH`` to ``MAX_GROWTH`` of its area: a clipped
 neighbour or a glaring patch of ground beside the rock leaves it lobed, or
 more than doubles it. A face that reaches the edge of the window where the
 frame cuts it is not taken: the photo shows neither it whole nor the ground
-round it. The
-outline kept may be the rock's darker, coloured part, no lighter than the
-ground: how light the rock is tells nothing here.
+round it. The outline kept may be the rock's darker, coloured part, no
+lighter than the ground: how light that part is tells nothing here.
 """
 
 from __future__ import annotations
@@ -32,15 +31,16 @@ from numpy.typing import NDArray
 
 from rockscan.core.segment.channels import _LUMA
 from rockscan.core.segment.shade import side_joined
-from rockscan.core.segment.trace import _disk
+from rockscan.core.segment.trace import _CEILING, _disk
 
 __all__ = ["clipped_on"]
 
 #: How far past the outline the clipped face is looked for, in equivalent
 #: radii of the rock.
 REACH = 1.2
-#: Pixel value (photo in [0, 1]) from which a channel counts as clipped.
-CEILING = 0.98
+#: Pixel value (photo in [0, 1]) from which a channel counts as clipped: the
+#: outline's threshold counts such a pixel as rock too (``trace``).
+CEILING = _CEILING
 #: Fewest clipped pixels touching the rock that make a face worth reading.
 MIN_CLIPPED = 20
 #: The rock grows by at most this share of its area.
@@ -55,7 +55,7 @@ MIN_CLOSE = 2
 
 
 def clipped_on(colour: NDArray[np.floating], mask: NDArray[np.bool_]) -> NDArray[np.bool_]:
-    """A light rock's mask with a clipped face beside it taken in (module docstring).
+    """A rock's mask with a clipped face beside it taken in (module docstring).
 
     Parameters
     ----------
@@ -112,7 +112,8 @@ def clipped_on(colour: NDArray[np.floating], mask: NDArray[np.bool_]) -> NDArray
 
 
 def _touching(parts: NDArray[np.bool_], near: NDArray[np.bool_]) -> NDArray[np.bool_]:
-    """The pieces of ``parts`` (8-connected) that reach into ``near``."""
+    """The pieces of ``parts`` that reach into ``near``, 8-connected: along a
+    blurred edge a face's clipped pixels may meet at their corners only."""
     from scipy import ndimage
 
     labels, _ = ndimage.label(parts, structure=np.ones((3, 3), bool))
