@@ -218,7 +218,7 @@ Steps (see :func:`segment`):
     channel at its ceiling, and white whatever the rock's colour; an outline
     drawn along the rock's hue leaves it out. The clipped pixels that touch
     the outline, grown to half-way in brightness from the ground to the
-    ceiling, join the rock where it stays as compact and grows by 3-45%
+    ceiling, join the rock where it stays as compact and grows by 3-70%
     (``rockscan.core.segment.clipped``).
 
 Known limits: a shadow whose edge with the rock's shaded side the photo does
