@@ -104,11 +104,14 @@ def _clipped_on(found: Segmentation, pixels: NDArray[np.generic]) -> Segmentatio
     # each grid pixel's block spares reading the window.
     if not _nearly_clipped(pixels, window, found.scale_rowcol):
         return found
-    colour = _working_colour(pixels, window, found.scale_rowcol)
-    if colour is None:
-        colour = _working_gray(pixels, window, found.scale_rowcol)
     mask = placed(found.rocks[0], window, found.scale_rowcol)
     if mask is None:
+        return found
+    # A gray photo is read once, as brightness, not first tried for colour.
+    in_colour = np.ndim(pixels) == 3 and np.shape(pixels)[2] >= 3
+    read = _working_colour if in_colour else _working_gray
+    colour = read(pixels, window, found.scale_rowcol)
+    if colour is None:
         return found
     grown = clipped_on(colour, mask)
     return found if grown is mask else _main_grown(found, window, mask, grown)
