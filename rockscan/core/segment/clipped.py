@@ -30,7 +30,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from rockscan.core.segment.channels import _LUMA
-from rockscan.core.segment.shade import side_joined
+from rockscan.core.segment.shade import _touching, side_joined
 from rockscan.core.segment.trace import _CEILING, _disk
 
 __all__ = ["clipped_on"]
@@ -95,7 +95,8 @@ def clipped_on(colour: NDArray[np.floating], mask: NDArray[np.bool_]) -> NDArray
     distance = ndimage.distance_transform_edt(outside)
     near = (distance > 0) & (distance <= REACH * radius)
     touching = distance <= 2.0
-    face = _touching(clipped & near, touching)
+    # Along a blurred edge a face's clipped pixels may meet at their corners only.
+    face = _touching(clipped & near, touching, connectivity=2)
     if np.count_nonzero(face) < MIN_CLIPPED:
         return mask
     bright = values @ _LUMA if values.ndim == 3 else values
@@ -105,20 +106,10 @@ def clipped_on(colour: NDArray[np.floating], mask: NDArray[np.bool_]) -> NDArray
     ground = float(np.median(bright[ring]))
     # A blurred edge of a face brighter than the sensor records lies past
     # half-way from the ground to the ceiling.
-    side = _touching(near & (bright >= 0.5 * (ground + 1.0)), face)
+    side = _touching(near & (bright >= 0.5 * (ground + 1.0)), face, connectivity=2)
     # Past the outline by less than ``REACH``, the face reaches the window's
     # edge only where the frame cuts the window.
     if side[[0, -1], :].any() or side[:, [0, -1]].any():
         return mask
     disk = _disk(max(MIN_CLOSE, round(CLOSE * radius)))
     return side_joined(mask, side, disk, MAX_GROWTH)
-
-
-def _touching(parts: NDArray[np.bool_], near: NDArray[np.bool_]) -> NDArray[np.bool_]:
-    """The pieces of ``parts`` that reach into ``near``, 8-connected: along a
-    blurred edge a face's clipped pixels may meet at their corners only."""
-    from scipy import ndimage
-
-    labels, _ = ndimage.label(parts, structure=np.ones((3, 3), bool))
-    keep = np.unique(labels[near & parts])
-    return np.isin(labels, keep[keep > 0])

@@ -164,11 +164,12 @@ def stays_compact(before: NDArray[np.bool_], after: NDArray[np.bool_]) -> bool:
     return solid and _roundness(after) <= LONGER * _roundness(before)
 
 
-def _touching(parts: NDArray[np.bool_], near: NDArray[np.bool_]) -> NDArray[np.bool_]:
-    """The pieces of ``parts`` that reach into ``near``."""
+def _touching(parts: NDArray[np.bool_], near: NDArray[np.bool_], connectivity: int = 1) -> NDArray[np.bool_]:
+    """The pieces of ``parts`` that reach into ``near``; pixels meeting at
+    their sides (``connectivity`` 1) or their corners too (2) are one piece."""
     from scipy import ndimage
 
-    labels, _ = ndimage.label(parts)
+    labels, _ = ndimage.label(parts, structure=ndimage.generate_binary_structure(2, connectivity))
     keep = np.unique(labels[near & parts])
     return np.isin(labels, keep[keep > 0])
 
