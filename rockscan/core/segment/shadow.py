@@ -77,7 +77,9 @@ the ground and keeps the ground's grain (``TWO_GRAIN``: a smooth facet
 turned from the light does not) without being more varied than grain
 (``TWO_FLAT``), the ground just past it is lit (``TWO_PAST``: past a light
 rock's own shaded side lies its cast shadow, darker still), the outline gets
-no longer, and the part lies away from the rock's lit side.
+no longer, and the part lies away from the rock's lit side. This flood is
+tried before the rays, which run only where it cuts nothing: on such an
+outline the rays may cut part of a black shadow and leave the rest.
 
 A rock lighter than its own shadow (mid-toned, or textured with light
 patches: the shadow is the ground in sky light alone) shows no rise from
@@ -239,8 +241,10 @@ def shadow_off(
         region = measured_region(gray, mask, MIN_AREA)
     if region is None:
         return mask
-    kept = _rays_off(gray, mask, region)
-    return kept if kept is not mask else _two_sided_off(gray, mask, region)
+    # The flood first: where the outline is both lighter and darker than the
+    # ground, the rays may cut part of a black shadow and leave the rest.
+    kept = _two_sided_off(gray, mask, region)
+    return kept if kept is not mask else _rays_off(gray, mask, region)
 
 
 def _rays_off(gray: NDArray[np.floating], mask: NDArray[np.bool_], region: Region) -> NDArray[np.bool_]:
