@@ -62,7 +62,10 @@ Steps (see :func:`segment`):
    set the standard alone. Each is cut so, and so are the outlines below;
    then every rock whose area is at least ``min_relative_area`` of the
    largest rock's and, among three or more, ``min_median_area`` of the
-   median rock's is kept, by decreasing area.
+   median rock's is kept, by decreasing area; and, among three or more, a
+   region whose median colour lies nearer the ground's round it than
+   ``scene.GROUND_LIKE`` of the median rock's distance is dropped: a patch
+   of ground between rocks, lit or shaded differently from the rest.
    Rocks of a later channel (chromaticity, after luminance) are added where
    they lie mostly (``FREE_SHARE``) outside every rock found before: a scene
    can hold rocks that differ from the ground in brightness and others that
