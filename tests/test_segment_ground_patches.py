@@ -101,7 +101,9 @@ def test_a_region_hemmed_in_by_rocks_is_judged_against_all_the_free_ground():
     image, _ = graded([])
     centre = (120, 240)
     angles = np.linspace(0, 2 * np.pi, 9)[:-1]
-    ring = [coverage(SHAPE, (centre[0] + 34 * np.sin(a), centre[1] + 34 * np.cos(a)), (16, 16)) for a in angles]
+    ring = [
+        coverage(SHAPE, (centre[0] + 34 * np.sin(a), centre[1] + 34 * np.cos(a)), (16, 16)) for a in angles
+    ]
     masks = [c >= 0.5 for c in ring]
     for mask in masks:
         image[mask] = 0.8
