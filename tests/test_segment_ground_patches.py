@@ -79,9 +79,9 @@ def test_a_patch_in_colour_is_judged_by_its_colour_not_its_brightness():
 
 @pytest.mark.parametrize("strength", [1.0, 1.4])
 def test_a_rock_in_the_dim_side_of_strong_light_is_kept(monkeypatch, strength):
-    # Light falls to 0.3 of the middle's across the frame at 1.4: the rock on
-    # the dim side lies nearer the whole ground's median brightness than the
-    # patches between bright rocks do, but as far from its own ground as any.
+    # Light falls to 0.5 (0.3 at 1.4) of the middle's at the frame's edge: the
+    # rock on the dim side is about as bright as the ground of the frame's
+    # middle, but as far from its own ground as any rock is from its own.
     image, masks = graded([0.7] * 8, strength=strength)
     rocks = [as_rock(m) for m in masks]
     assert len(scene._unlike_ground(rocks, image, np.dtype(np.float32))) == 8
