@@ -25,6 +25,7 @@ from rockscan.core.segment.outliner import Outliner, assemble, cropped
 from rockscan.core.segment.split import (
     CONVEX_CELL,
     largest_part,
+    nearest_regions,
     split_blobs,
     split_colours,
     split_pockets,
@@ -137,14 +138,12 @@ def _unlike_ground(rocks: list[RockMask], work: NDArray[np.generic], dtype: np.d
     if np.count_nonzero(free) < GROUND_LEAST * free.size:
         return rocks
     # Each free pixel is ground to its nearest rock: one transform for them all.
-    gap, nearest = cv2.distanceTransformWithLabels(1 - taken, cv2.DIST_L2, 5, labelType=cv2.DIST_LABEL_PIXEL)
-    of_label = np.zeros(int(nearest.max()) + 1, np.int32)
-    of_label[nearest[taken > 0]] = owner[taken > 0]
+    gap, nearest = nearest_regions(owner)
     areas = np.array([rock.area for rock in rocks], np.float64)
     reach = GROUND_REACH * np.sqrt(areas / math.pi) + GROUND_MARGIN
     ground = free.copy()
-    ground[free] = gap[free] <= reach[of_label[nearest[free]] - 1]
-    whose = of_label[nearest[ground]] - 1
+    ground[free] = gap[free] <= reach[nearest[free] - 1]
+    whose = nearest[ground] - 1
     values = colour[ground]
     order = np.argsort(whose, kind="stable")
     bounds = np.searchsorted(whose[order], np.arange(len(rocks) + 1))

@@ -49,6 +49,7 @@ from rockscan.core.segment.stats import bounding_box, label_maxima, solidity, to
 __all__ = [
     "label_image",
     "largest_part",
+    "nearest_regions",
     "opened",
     "pockets",
     "rejoined",
@@ -736,21 +737,39 @@ def territories(regions: list[NDArray[np.bool_]]) -> NDArray[np.int32]:
     A rock's outline, traced later on a finer image, must not run into a
     neighbour it touches: it is kept to its territory.
     """
-    import cv2
-
     if not regions:
         raise ValueError("territories of no region")
     labels = label_image(regions)
     if len(regions) == 1:
         return np.ones_like(labels)
-    # The Voronoi cells of the regions: OpenCV labels each ground pixel by its
-    # nearest zero pixel; map those back to the regions.
-    _, nearest = cv2.distanceTransformWithLabels(
+    return nearest_regions(labels)[1]
+
+
+def nearest_regions(labels: NDArray[np.integer]) -> tuple[NDArray[np.float32], NDArray[np.int32]]:
+    """Each pixel's distance to the nearest region and that region's label.
+
+    Parameters
+    ----------
+    labels : (rows, cols) ndarray of int
+        0 for ground, positive labels for regions (at least one).
+
+    Returns
+    -------
+    distance : (rows, cols) ndarray of float32
+        Euclidean distance to the nearest region's pixel (0 on the regions).
+    nearest : (rows, cols) ndarray of int32
+        That region's label: the regions' Voronoi cells.
+    """
+    import cv2
+
+    # OpenCV labels each ground pixel by its nearest zero pixel; those are
+    # mapped back to the regions.
+    distance, nearest = cv2.distanceTransformWithLabels(
         (labels == 0).astype(np.uint8), cv2.DIST_L2, 5, labelType=cv2.DIST_LABEL_PIXEL
     )
     owner = np.zeros(int(nearest.max()) + 1, np.int32)
     owner[nearest[labels > 0]] = labels[labels > 0]
-    return owner[nearest]
+    return distance, owner[nearest]
 
 
 def _contrast_cells(
