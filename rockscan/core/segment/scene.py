@@ -22,6 +22,7 @@ from rockscan.core.segment import join
 from rockscan.core.segment.channels import _LUMA, _channels, _unit
 from rockscan.core.segment.detect import _detect, _Detection
 from rockscan.core.segment.outliner import Outliner, assemble, cropped
+from rockscan.core.segment.ringed import colour_gradient, ringed_regions
 from rockscan.core.segment.split import (
     CONVEX_CELL,
     largest_part,
@@ -108,9 +109,28 @@ def rocks_of_every_channel(
         kept = [r for r in kept if r.area >= config.min_median_area * median]
     if len(kept) >= MEDIAN_LEAST:
         kept = _unlike_ground(kept, outline.works[id(found[0])][0], outline.dtype)
+        # A rock of the ground's own colour stands out in no channel, only by its rim.
+        kept.extend(_ringed(kept, outline, found[0]))
     if len(kept) == len(rocks) == len(first.rocks):
         return first
     return assemble(kept, first.labels.shape, first.scale_rowcol, first.polarity, first.channel)
+
+
+def _ringed(rocks: list[RockMask], outline: Outliner, found: Segmentation) -> list[RockMask]:
+    """The rocks a closed ring of edge outlines in the ground the others leave
+    (``rockscan.core.segment.ringed``), each scored on its outline."""
+    work, up, detection = outline.works[id(found)]
+    labels = assemble(rocks, work.shape[:2], found.scale_rowcol, found.polarity, found.channel).labels
+    unit = _unit(np.ascontiguousarray(work[..., :3] if work.ndim == 3 else work), outline.dtype)
+    regions = ringed_regions(colour_gradient(unit), labels, outline.config.min_median_area)
+    if not regions:
+        return []
+    to_detect = outline.to_detect(work.shape[:2], up)
+    out = []
+    for region in regions:
+        whole = RockMask(mask=region, coverage=region.astype(np.float32), origin_rowcol=(0, 0))
+        out.append(_scored(work, outline.dtype, cropped(whole), to_detect, up, detection, outline.config))
+    return out
 
 
 def _unlike_ground(rocks: list[RockMask], work: NDArray[np.generic], dtype: np.dtype) -> list[RockMask]:
