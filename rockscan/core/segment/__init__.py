@@ -65,7 +65,10 @@ Steps (see :func:`segment`):
    median rock's is kept, by decreasing area; and, among three or more, a
    region whose median colour lies nearer the ground's round it than
    ``scene.GROUND_LIKE`` of the median rock's distance is dropped: a patch
-   of ground between rocks, lit or shaded differently from the rest.
+   of ground between rocks, lit or shaded differently from the rest. Last,
+   a rock of the ground's own colour is looked for by its rim: a patch of
+   the ground the rocks leave that an edge as steep as theirs closes all
+   round, compact and of a rock's size (``rockscan.core.segment.ringed``).
    Rocks of a later channel (chromaticity, after luminance) are added where
    they lie mostly (``FREE_SHARE``) outside every rock found before: a scene
    can hold rocks that differ from the ground in brightness and others that

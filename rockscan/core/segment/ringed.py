@@ -11,12 +11,14 @@ for in the ground they leave:
    median along the found rocks' outlines: the scene's own measure of what a
    rock's edge is.
 2. The pixels off every edge and every found rock make regions; those that
-   touch the frame, or are smaller than ``LEAST_CORE`` or larger than
-   ``MOST_CORE`` times the median rock, are ground (a rock of a crowded scene
-   lies in the frame, and a patch of plain ground between rocks is most
-   often larger than a rock).
-3. Each region left is grown through its ring to the ridge of the gradient
-   (a watershed from the region, the found rocks and the open ground).
+   touch the frame, or are larger than ``MOST_CORE`` times the median rock,
+   are ground (a rock of a crowded scene lies in the frame, and a patch of
+   plain ground between rocks is most often larger than a rock); those
+   under ``LEAST_CORE`` of it are specks.
+3. Each region left is grown through its ring to the ridge of the gradient,
+   all at once: a watershed from the regions, the found rocks and the rest
+   of the ground, where ground lies farther than ``REACH`` of a region's
+   equivalent radius from every region whatever edges cross it.
 4. A grown region counts as a rock when it is large enough (the caller's
    least share of the median rock), compact (solidity at least ``SOLID``),
    no thin strip (thickness at least ``THICK``), and lies mostly against
@@ -84,7 +86,8 @@ def colour_gradient(image: NDArray[np.float32], sigma: float = GRADIENT_SIGMA) -
     image = np.ascontiguousarray(image, dtype=np.float32)
     colour = cv2.cvtColor(image, cv2.COLOR_RGB2Lab) if image.ndim == 3 else (100.0 * image)
     colour = cv2.GaussianBlur(colour, (0, 0), sigma)
-    # Sobel's 3x3 kernel weighs a unit step 8 times over both of its sides.
+    # Sobel's 3x3 kernel sums to 8 across a unit step: divided by 8, the
+    # gradient summed across a step is the step's height.
     dx = cv2.Sobel(colour, cv2.CV_32F, 1, 0, ksize=3) / 8.0
     dy = cv2.Sobel(colour, cv2.CV_32F, 0, 1, ksize=3) / 8.0
     squared = dx * dx + dy * dy

@@ -5,7 +5,9 @@ a later channel's rocks count where no earlier rock lies. Rocks are parted by
 the cues of blobs, colours, seams and pockets (``rockscan.core.segment.split``),
 dimmer rocks left over under a brighter one's level are outlined at their own,
 pieces of one rock are joined and touching rocks parted by the learnt join
-(``rockscan.core.segment.join``), and specks are dropped. The steps and their
+(``rockscan.core.segment.join``), specks and patches of the ground's colour are
+dropped, and rocks of the ground's own colour are found by their rims
+(``rockscan.core.segment.ringed``). The steps and their
 measured effect are in ``rockscan.core.segment``'s module docstring (step 5)
 and ``docs/segment-algorithm.md``.
 """
