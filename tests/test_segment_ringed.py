@@ -92,6 +92,12 @@ def test_a_ring_open_to_the_frame_is_ground():
     assert ringed_regions(colour_gradient(image), labels, 0.2) == []
 
 
+def test_rocks_that_fill_the_frame_leave_nothing_to_look_in():
+    labels = np.repeat(np.arange(1, 4, dtype=np.int32), SHAPE[1] // 3)[None, :].repeat(SHAPE[0], axis=0)
+    image = np.random.default_rng(0).uniform(0, 1, SHAPE).astype(np.float32)
+    assert ringed_regions(colour_gradient(image), labels, 0.2) == []
+
+
 def test_too_few_rocks_to_judge_by_finds_nothing():
     image, labels, _ = scene_of(FOUND[:2], [(120, 240)])
     assert ringed_regions(colour_gradient(image), labels, 0.2) == []

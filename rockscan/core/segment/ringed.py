@@ -129,6 +129,9 @@ def ringed_regions(
     median = float(np.median(areas))
     taken8 = taken.astype(np.uint8)
     outline = taken & (cv2.erode(taken8, np.ones((3, 3), np.uint8)) == 0)
+    # Rocks that fill the frame leave no outline against ground to read.
+    if not outline.any():
+        return []
     rim = float(np.median(gradient[outline]))
     if not rim > 0.0:
         return []
