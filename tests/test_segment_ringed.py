@@ -154,6 +154,30 @@ def test_the_gradient_of_a_step_is_its_height_in_lab_units():
     assert row.argmax() in (19, 20)
 
 
+def test_every_rock_of_a_photo_with_rocks_of_the_grounds_level_is_found(monkeypatch):
+    # Six light rocks and, between them, six of the ground's level that only
+    # their darker rims show.
+    image = np.full(SHAPE, GROUND)
+    truths = []
+    for i in range(12):
+        centre = (60 + 120 * (i // 6), 40 + 80 * (i % 6))
+        if i % 2 == 0:
+            cover, level = coverage(SHAPE, centre, (24, 24)), 0.75
+        else:
+            cover, level = rimmed(SHAPE, centre, 24.0)
+        image = image * (1 - cover) + level * cover
+        truths.append(cover >= 0.5)
+    image = image + np.random.default_rng(0).normal(0.0, 0.01, SHAPE)
+    pixels = np.round(np.clip(image, 0, 1) * 255).astype(np.uint8)
+    found = segment(pixels, all_rocks=True)
+    assert found.n_rocks == 12
+    labels = bench_segment.segmentation_labels(found, SHAPE)
+    for truth in truths:
+        assert max(iou(labels == k, truth) for k in range(1, 13)) >= 0.85
+    monkeypatch.setattr(scene, "_ringed", lambda *args: [])
+    assert segment(pixels, all_rocks=True).n_rocks == 6
+
+
 @pytest.mark.parametrize(("index", "without"), [(4066, 28), (4154, 8), (4353, 26)])
 def test_development_scenes_are_counted_right_once_ringed_rocks_are_found(monkeypatch, index, without):
     # Gray rocks on gray ground beside coloured ones (development crowded
