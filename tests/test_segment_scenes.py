@@ -189,7 +189,10 @@ def test_a_rock_in_its_neighbours_region_under_their_outlines_level_is_outlined_
     # 190: a rock between two larger, brighter ones, which took none of it).
     # What of a region no rock took, where it is a round, solid part of a
     # rock's size, is outlined at its own level (_left_over): 36 -> 37 and
-    # 22 -> 23 one to one.
+    # 22 -> 23 one to one. The rock of scene 190 is closed by its rim as well,
+    # and the ring step (rockscan.core.segment.ringed) finds it without this
+    # one: that step is held off to see this one alone.
+    monkeypatch.setattr(rockscan.core.segment.scene, "_ringed", lambda *args: [])
     crowd = judged("crowded", index)
     assert crowd.matched >= matched, crowd
     monkeypatch.setattr(rockscan.core.segment.scene, "_left_over", lambda *args: None)
