@@ -14,6 +14,7 @@ from test_segment import coverage
 
 import rockscan.core.segment.scene as scene
 from rockscan.core.segment import segment
+from rockscan.core.segment.channels import cielab
 from rockscan.core.segment.types import RockMask
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "scripts"))
@@ -58,7 +59,7 @@ def test_a_patch_of_lighter_ground_among_rocks_is_dropped_and_every_rock_kept():
     # but a twentieth of the rocks' own.
     image, masks = graded([0.8, 0.75, 0.85, 0.8, 0.7, 0.385, 0.8, 0.78])
     rocks = [as_rock(m) for m in masks]
-    kept = scene._unlike_ground(rocks, image, np.dtype(np.float32))
+    kept = scene._unlike_ground(rocks, cielab(image))
     assert kept_indices(rocks, kept) == [0, 1, 2, 3, 4, 6, 7]
 
 
@@ -73,7 +74,7 @@ def test_a_patch_in_colour_is_judged_by_its_colour_not_its_brightness():
         image[mask] = colour
     image += np.random.default_rng(1).normal(0.0, 0.01, image.shape).astype(np.float32)
     rocks = [as_rock(m) for m in masks]
-    kept = scene._unlike_ground(rocks, np.clip(image, 0, 1), np.dtype(np.float32))
+    kept = scene._unlike_ground(rocks, cielab(np.clip(image, 0, 1)))
     assert kept_indices(rocks, kept) == [0, 1, 2, 4]
 
 
@@ -84,11 +85,11 @@ def test_a_rock_in_the_dim_side_of_strong_light_is_kept(monkeypatch, strength):
     # middle, but as far from its own ground as any rock is from its own.
     image, masks = graded([0.7] * 8, strength=strength)
     rocks = [as_rock(m) for m in masks]
-    assert len(scene._unlike_ground(rocks, image, np.dtype(np.float32))) == 8
+    assert len(scene._unlike_ground(rocks, cielab(image))) == 8
     # Against the ground of the whole frame, it would go: with no reach, no
     # region has ground of its own.
     monkeypatch.setattr(scene, "GROUND_REACH", 0.0)
-    assert len(scene._unlike_ground(rocks, image, np.dtype(np.float32))) < 8
+    assert len(scene._unlike_ground(rocks, cielab(image))) < 8
 
 
 def test_every_rock_of_a_strongly_graded_photo_is_found():
@@ -110,7 +111,7 @@ def test_a_region_hemmed_in_by_rocks_is_judged_against_all_the_free_ground():
     hole = (coverage(SHAPE, centre, (14, 14)) >= 0.5) & ~np.logical_or.reduce(masks)
     image[hole] = 0.37
     rocks = [as_rock(m) for m in masks] + [as_rock(hole)]
-    kept = scene._unlike_ground(rocks, image, np.dtype(np.float32))
+    kept = scene._unlike_ground(rocks, cielab(image))
     assert kept_indices(rocks, kept) == list(range(8))
 
 
@@ -121,7 +122,7 @@ def test_too_little_free_ground_keeps_every_region():
     for i, mask in enumerate(masks):
         mask[:, i * third : (i + 1) * third] = True
     rocks = [as_rock(m) for m in masks]
-    assert scene._unlike_ground(rocks, image, np.dtype(np.float32)) == rocks
+    assert scene._unlike_ground(rocks, cielab(image)) == rocks
 
 
 @settings(max_examples=25, deadline=None)
@@ -129,7 +130,7 @@ def test_too_little_free_ground_keeps_every_region():
 def test_the_regions_farthest_from_the_ground_are_always_kept(levels, strength):
     image, masks = graded(levels, strength=strength)
     rocks = [as_rock(m) for m in masks]
-    kept = scene._unlike_ground(rocks, image, np.dtype(np.float32))
+    kept = scene._unlike_ground(rocks, cielab(image))
     # A sub-list in order, holding at least half: every region at least as
     # far from its ground as the median one stays.
     indices = kept_indices(rocks, kept)

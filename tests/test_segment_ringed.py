@@ -14,7 +14,8 @@ from test_segment import coverage
 
 import rockscan.core.segment.scene as scene
 from rockscan.core.segment import segment
-from rockscan.core.segment.ringed import colour_gradient, ringed_regions
+from rockscan.core.segment.channels import cielab
+from rockscan.core.segment.ringed import lab_gradient, ringed_regions
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "scripts"))
 import bench_segment
@@ -61,7 +62,7 @@ FOUND = [(60, 60), (180, 60), (60, 420), (180, 420)]
 
 def test_a_rock_of_the_grounds_level_with_a_rim_is_found():
     image, labels, (truth,) = scene_of(FOUND, [(120, 240)])
-    (region,) = ringed_regions(colour_gradient(image), labels, 0.2)
+    (region,) = ringed_regions(lab_gradient(cielab(image)), labels, 0.2)
     assert iou(region, truth) >= 0.85
 
 
@@ -74,7 +75,7 @@ def test_a_rock_in_colour_is_ringed_by_its_colour_edge():
     image[labels > 0] = (0.8, 0.7, 0.6)
     towards_rim = ((GROUND - gray) / 0.25).clip(0, 1)[..., None] * truth[..., None]
     image = image + towards_rim * (np.array([0.3, 0.36, 0.5], np.float32) - ground)
-    (region,) = ringed_regions(colour_gradient(image), labels, 0.2)
+    (region,) = ringed_regions(lab_gradient(cielab(image)), labels, 0.2)
     assert iou(region, truth) >= 0.8
 
 
@@ -84,23 +85,23 @@ def test_a_pocket_of_ground_walled_in_by_rocks_is_no_rock():
     angles = np.linspace(0, 2 * np.pi, 9)[:-1]
     ring = [(centre[0] + 40 * np.sin(a), centre[1] + 40 * np.cos(a)) for a in angles]
     image, labels, _ = scene_of([*ring, *FOUND], [], radius=18.0)
-    assert ringed_regions(colour_gradient(image), labels, 0.2) == []
+    assert ringed_regions(lab_gradient(cielab(image)), labels, 0.2) == []
 
 
 def test_a_ring_open_to_the_frame_is_ground():
     image, labels, _ = scene_of(FOUND, [(120, 0)])
-    assert ringed_regions(colour_gradient(image), labels, 0.2) == []
+    assert ringed_regions(lab_gradient(cielab(image)), labels, 0.2) == []
 
 
 def test_rocks_that_fill_the_frame_leave_nothing_to_look_in():
     labels = np.repeat(np.arange(1, 4, dtype=np.int32), SHAPE[1] // 3)[None, :].repeat(SHAPE[0], axis=0)
     image = np.random.default_rng(0).uniform(0, 1, SHAPE).astype(np.float32)
-    assert ringed_regions(colour_gradient(image), labels, 0.2) == []
+    assert ringed_regions(lab_gradient(cielab(image)), labels, 0.2) == []
 
 
 def test_too_few_rocks_to_judge_by_finds_nothing():
     image, labels, _ = scene_of(FOUND[:2], [(120, 240)])
-    assert ringed_regions(colour_gradient(image), labels, 0.2) == []
+    assert ringed_regions(lab_gradient(cielab(image)), labels, 0.2) == []
 
 
 @pytest.mark.parametrize(("radius", "kept"), [(12.0, 1), (8.5, 0)])
@@ -110,7 +111,7 @@ def test_a_small_ringed_region_is_a_speck(radius, kept):
     image, labels, _ = scene_of(FOUND, [])
     small, level = rimmed(SHAPE, (120, 240), radius)
     image = (image * (1 - small) + level * small).astype(np.float32)
-    assert len(ringed_regions(colour_gradient(image), labels, 0.2)) == kept
+    assert len(ringed_regions(lab_gradient(cielab(image)), labels, 0.2)) == kept
 
 
 @pytest.mark.parametrize(("half_size", "kept"), [((9, 60), 0), ((22, 26), 1)])
@@ -122,7 +123,7 @@ def test_a_strip_closed_by_edges_is_no_rock_but_a_block_is(half_size, kept):
     inside = (np.abs(rows - 120) < half_size[0]) & (np.abs(cols - 240) < half_size[1])
     image[inside] = GROUND - 0.2
     image[inside & (np.abs(rows - 120) < half_size[0] - 3) & (np.abs(cols - 240) < half_size[1] - 3)] = GROUND
-    assert len(ringed_regions(colour_gradient(image), labels, 0.2)) == kept
+    assert len(ringed_regions(lab_gradient(cielab(image)), labels, 0.2)) == kept
 
 
 @settings(max_examples=20, deadline=None)
@@ -138,7 +139,7 @@ def test_a_strip_closed_by_edges_is_no_rock_but_a_block_is(half_size, kept):
 def test_no_region_found_lies_on_a_rock_found_before(centres, seed):
     found, ringed = centres[:-1], centres[-1:]
     image, labels, _ = scene_of(found, ringed, radius=18.0, seed=seed)
-    regions = ringed_regions(colour_gradient(image), labels, 0.2)
+    regions = ringed_regions(lab_gradient(cielab(image)), labels, 0.2)
     for region in regions:
         assert not np.any(region & (labels > 0))
     assert len(regions) <= 1 + len(found)
@@ -149,7 +150,7 @@ def test_the_gradient_of_a_step_is_its_height_in_lab_units():
     # step over the blur's width, and its sum across the step the step.
     image = np.zeros((40, 40), np.float32)
     image[:, 20:] = 0.5
-    row = colour_gradient(image, sigma=1.0)[20]
+    row = lab_gradient(cielab(image), sigma=1.0)[20]
     assert row.sum() == pytest.approx(50.0, rel=0.02)
     assert row.argmax() in (19, 20)
 

@@ -109,6 +109,28 @@ def _unit(arr: NDArray[np.generic], dtype: np.dtype) -> NDArray[np.float32]:
     return np.clip(arr.astype(np.float32), 0.0, 1.0)
 
 
+def cielab(unit: NDArray[np.float32]) -> NDArray[np.float32]:
+    """Colour where a distance is about as far to the eye in every hue.
+
+    Parameters
+    ----------
+    unit : (rows, cols, 3) or (rows, cols) ndarray of float32
+        RGB or brightness in [0, 1].
+
+    Returns
+    -------
+    (rows, cols, 3) or (rows, cols, 1) ndarray of float32
+        CIELAB for RGB; 100 times the brightness (CIELAB's scale of lightness)
+        for gray.
+    """
+    import cv2
+
+    unit = np.ascontiguousarray(unit, dtype=np.float32)
+    if unit.ndim == 3:
+        return cv2.cvtColor(unit, cv2.COLOR_RGB2Lab)
+    return (100.0 * unit)[..., None]
+
+
 @dataclass(frozen=True, eq=False)
 class _Channel:
     """A brightness channel: how to compute it from colour or gray pixels in [0, 1].

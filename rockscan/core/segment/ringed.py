@@ -6,8 +6,7 @@ of steep change, as strong as the other rocks' edges, round a patch as
 smooth as the rock's skin. Among rocks already found, such a ring is looked
 for in the ground they leave:
 
-1. The colour gradient (CIELAB in colour, brightness in gray, lightly
-   blurred) is taken for an edge where it reaches ``EDGE_SHARE`` of its
+1. The colour gradient (CIELAB, lightly blurred) is taken for an edge where it reaches ``EDGE_SHARE`` of its
    median along the found rocks' outlines: the scene's own measure of what a
    rock's edge is.
 2. The pixels off every edge and every found rock make regions; those that
@@ -38,9 +37,9 @@ import numpy as np
 from numpy.typing import NDArray
 
 from rockscan.core.segment.split import nearest_regions
-from rockscan.core.segment.stats import bounding_box, solidity
+from rockscan.core.segment.stats import solidity
 
-__all__ = ["colour_gradient", "ringed_regions"]
+__all__ = ["lab_gradient", "ringed_regions"]
 
 #: Share of the median gradient along the found rocks' outlines from which a
 #: pixel is an edge (development crowded scenes 4000-4159).
@@ -65,27 +64,30 @@ REACH = 0.5
 BAND = 2
 
 
-def colour_gradient(image: NDArray[np.float32], sigma: float = GRADIENT_SIGMA) -> NDArray[np.float32]:
+def lab_gradient(colour: NDArray[np.float32], sigma: float = GRADIENT_SIGMA) -> NDArray[np.float32]:
     """The magnitude of the colour gradient, in CIELAB units per pixel.
+
+    The length of the gradient in CIELAB, so that a rim counts alike in
+    every hue, as the ground patches' rule reads colour
+    (``rockscan.core.segment.cues.colour_gradient``, the largest gradient
+    over the RGB channels, is what the one-rock candidates' basins flood).
 
     Parameters
     ----------
-    image : (rows, cols, 3) or (rows, cols) ndarray of float32
-        RGB or brightness in [0, 1].
+    colour : (rows, cols, channels) ndarray of float32
+        The photo in CIELAB (``rockscan.core.segment.channels.cielab``; one
+        channel, 100 times the brightness, for gray).
     sigma : float
         Gaussian blur before the derivatives, in pixels.
 
     Returns
     -------
     (rows, cols) ndarray of float32
-        The Euclidean norm of the three channels' Sobel derivatives (one
-        channel, 100 times the brightness, for gray).
+        The Euclidean norm of the channels' Sobel derivatives.
     """
     import cv2
 
-    image = np.ascontiguousarray(image, dtype=np.float32)
-    colour = cv2.cvtColor(image, cv2.COLOR_RGB2Lab) if image.ndim == 3 else (100.0 * image)
-    colour = cv2.GaussianBlur(colour, (0, 0), sigma)
+    colour = cv2.GaussianBlur(np.ascontiguousarray(colour, dtype=np.float32), (0, 0), sigma)
     # Sobel's 3x3 kernel sums to 8 across a unit step: divided by 8, the
     # gradient summed across a step is the step's height.
     dx = cv2.Sobel(colour, cv2.CV_32F, 1, 0, ksize=3) / 8.0
@@ -104,7 +106,7 @@ def ringed_regions(
     Parameters
     ----------
     gradient : (rows, cols) ndarray of float32
-        The colour gradient (:func:`colour_gradient`).
+        The colour gradient (:func:`lab_gradient`).
     labels : (rows, cols) ndarray of int
         The rocks found: 0 for ground, one positive label each.
     least_area : float
@@ -164,19 +166,16 @@ def ringed_regions(
     flooded = watershed(gradient, markers, mask=active)
     band_kernel = np.ones((2 * BAND + 1,) * 2, np.uint8)
     found = []
-    for number in range(1, cores.size + 1):
-        region = flooded == number
-        box = bounding_box(region)
+    for number, box in enumerate(ndi.find_objects(flooded, max_label=cores.size), start=1):
         if box is None:
             continue
-        r0, r1, c0, c1 = box
-        r0, c0 = max(r0 - BAND, 0), max(c0 - BAND, 0)
-        r1, c1 = min(r1 + BAND, labels.shape[0]), min(c1 + BAND, labels.shape[1])
+        r0, c0 = max(box[0].start - BAND, 0), max(box[1].start - BAND, 0)
+        r1, c1 = min(box[0].stop + BAND, labels.shape[0]), min(box[1].stop + BAND, labels.shape[1])
         # Holes are filled, but not over another core's region: a ring-shaped
         # core round a band of its rim would take the rock's own core.
         window = flooded[r0:r1, c0:c1]
         others = (window != number) & (window <= cores.size)
-        part = ndi.binary_fill_holes(region[r0:r1, c0:c1]) & ~taken[r0:r1, c0:c1] & ~others
+        part = ndi.binary_fill_holes(window == number) & ~taken[r0:r1, c0:c1] & ~others
         area = int(np.count_nonzero(part))
         if area < least_area * median or solidity(part) < SOLID or _thickness(part, area) < THICK:
             continue

@@ -21,10 +21,10 @@ import numpy as np
 from numpy.typing import NDArray
 
 from rockscan.core.segment import join
-from rockscan.core.segment.channels import _LUMA, _channels, _unit
+from rockscan.core.segment.channels import _LUMA, _channels, _unit, cielab
 from rockscan.core.segment.detect import _detect, _Detection
 from rockscan.core.segment.outliner import Outliner, assemble, cropped
-from rockscan.core.segment.ringed import colour_gradient, ringed_regions
+from rockscan.core.segment.ringed import lab_gradient, ringed_regions
 from rockscan.core.segment.split import (
     CONVEX_CELL,
     largest_part,
@@ -110,21 +110,25 @@ def rocks_of_every_channel(
         median = float(np.median([r.area for r in kept]))
         kept = [r for r in kept if r.area >= config.min_median_area * median]
     if len(kept) >= MEDIAN_LEAST:
-        kept = _unlike_ground(kept, outline.works[id(found[0])][0], outline.dtype)
+        work = outline.works[id(found[0])][0]
+        colour = cielab(_unit(work[..., :3] if work.ndim == 3 else work, outline.dtype))
+        kept = _unlike_ground(kept, colour)
         # A rock of the ground's own colour stands out in no channel, only by its rim.
-        kept.extend(_ringed(kept, outline, found[0]))
+        kept.extend(_ringed(kept, colour, outline, found[0]))
     if len(kept) == len(rocks) == len(first.rocks):
         return first
     return assemble(kept, first.labels.shape, first.scale_rowcol, first.polarity, first.channel)
 
 
-def _ringed(rocks: list[RockMask], outline: Outliner, found: Segmentation) -> list[RockMask]:
+def _ringed(
+    rocks: list[RockMask], colour: NDArray[np.float32], outline: Outliner, found: Segmentation
+) -> list[RockMask]:
     """The rocks a closed ring of edge outlines in the ground the others leave
-    (``rockscan.core.segment.ringed``), each scored on its outline."""
+    (``rockscan.core.segment.ringed``; ``colour`` the working image in
+    CIELAB), each scored on its outline."""
     work, up, detection = outline.works[id(found)]
     labels = assemble(rocks, work.shape[:2], found.scale_rowcol, found.polarity, found.channel).labels
-    unit = _unit(np.ascontiguousarray(work[..., :3] if work.ndim == 3 else work), outline.dtype)
-    regions = ringed_regions(colour_gradient(unit), labels, outline.config.min_median_area)
+    regions = ringed_regions(lab_gradient(colour), labels, outline.config.min_median_area)
     if not regions:
         return []
     to_detect = outline.to_detect(work.shape[:2], up)
@@ -135,11 +139,11 @@ def _ringed(rocks: list[RockMask], outline: Outliner, found: Segmentation) -> li
     return out
 
 
-def _unlike_ground(rocks: list[RockMask], work: NDArray[np.generic], dtype: np.dtype) -> list[RockMask]:
+def _unlike_ground(rocks: list[RockMask], colour: NDArray[np.float32]) -> list[RockMask]:
     """The rocks less those whose colour lies as near their ground's as the ground's own patches do.
 
-    Among several rocks, a region whose median colour (CIELAB in colour,
-    brightness in gray) lies closer to the ground's round it than
+    Among several rocks, a region whose median colour (``colour``, the
+    working image in CIELAB: ``channels.cielab``) lies closer to the ground's round it than
     ``GROUND_LIKE`` of the median rock's distance is a patch of ground
     between rocks, lit or shaded differently from the rest, far more often
     than a rock. Each region's ground is the free ground within
@@ -149,10 +153,7 @@ def _unlike_ground(rocks: list[RockMask], work: NDArray[np.generic], dtype: np.d
     """
     import cv2
 
-    unit = _unit(np.ascontiguousarray(work[..., :3] if work.ndim == 3 else work), dtype)
-    # CIELAB: a distance there is about as far to the eye in every hue.
-    colour = cv2.cvtColor(unit, cv2.COLOR_RGB2Lab) if unit.ndim == 3 else (100.0 * unit)[..., None]
-    owner = np.zeros(unit.shape[:2], np.int32)
+    owner = np.zeros(colour.shape[:2], np.int32)
     for index, rock in enumerate(rocks, start=1):
         owner[rock.window][rock.mask] = index
     taken = (owner > 0).astype(np.uint8)
