@@ -552,3 +552,74 @@ def test_the_score_figure_is_a_png_and_none_without_scores(tmp_path):
     assert path.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     assert bench.write_score_figure(records, "dev", tmp_path / "none.png") is None
     assert not (tmp_path / "none.png").exists()
+
+
+# --------------------------------------------------------------------------- intervals
+
+
+@pytest.mark.parametrize(
+    ("successes", "n", "low", "high"),
+    [
+        # Wilson's score interval at 95%, worked by hand:
+        # centre (p + z^2/2n) / (1 + z^2/n), half-width z sqrt(p(1-p)/n + z^2/4n^2) / (1 + z^2/n).
+        (0, 10, 0.0, 0.27753),
+        (10, 10, 0.72247, 1.0),
+        (20, 40, 0.35200, 0.64800),
+        (30, 40, 0.59806, 0.85813),
+        (1, 1, 0.20654, 1.0),
+    ],
+)
+def test_the_wilson_interval_matches_its_formula(successes, n, low, high):
+    assert bench.wilson_interval(successes, n) == pytest.approx((low, high), abs=1e-5)
+
+
+@pytest.mark.parametrize("n", [1, 7, 40, 440])
+def test_the_wilson_interval_holds_the_share_and_stays_in_the_unit_range(n):
+    for successes in range(n + 1):
+        low, high = bench.wilson_interval(successes, n)
+        assert 0.0 <= low <= successes / n <= high <= 1.0
+
+
+def test_the_wilson_interval_narrows_as_the_square_root_of_the_photos():
+    few = np.subtract(*bench.wilson_interval(30, 40)[::-1])
+    many = np.subtract(*bench.wilson_interval(3000, 4000)[::-1])
+    assert many == pytest.approx(few / 10, rel=0.05)
+    assert all(np.isnan(bench.wilson_interval(0, 0)))
+
+
+def _scene(matched: int, n_true: int, exact: bool = True) -> dict:
+    return {
+        "part": "heldout",
+        "condition": "crowded",
+        "method": "rockscan",
+        "kind": "all",
+        "n_true": n_true,
+        "n_found": n_true if exact else n_true + 1,
+        "matched": matched,
+        "merges": 0,
+        "splits": 0,
+        "seconds": 0.1,
+    }
+
+
+def test_the_matched_interval_resamples_scenes_not_rocks():
+    # Twenty scenes of 20 rocks: ten all matched, ten half matched (75% in all).
+    scenes_ = [_scene(20, 20)] * 10 + [_scene(10, 20)] * 10
+    low, high = bench.matched_interval(scenes_)
+    assert low < 0.75 < high
+    # The same 400 rocks as if each failed alone would give a far narrower interval.
+    rocks = bench.wilson_interval(300, 400)
+    assert high - low > 1.5 * (rocks[1] - rocks[0])
+    assert bench.matched_interval(scenes_) == (low, high)  # seeded
+    assert all(np.isnan(bench.matched_interval([])))
+
+
+def test_the_table_prints_each_share_with_its_interval():
+    records = [_scene(20, 20)] * 3 + [_scene(18, 20, exact=False)]
+    records += [
+        {**_record(0.5, iou), "condition": "plain", "centroid_error": 0.0, "no_rock": False, "seconds": 0.1}
+        for iou in (0.95, 0.95, 0.5, 0.99)
+    ]
+    table = bench.format_table(bench.summarize(records))
+    assert "| heldout | plain | rockscan | 4 | 75.0% (30.1-95.4) |" in table
+    assert "| 75.0% (30.1-95.4) | 97.5% (" in table  # exact count 3 of 4; rocks 78 of 80
