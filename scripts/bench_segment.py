@@ -20,7 +20,7 @@ of the centroid in equivalent radii ``sqrt(area / pi)`` of the truth, and
 whose count is exact, share of true rocks matched one to one (IoU > 0.5;
 above that threshold a match is unique), merges (found regions holding most of
 two or more true rocks) and splits (true rocks holding most of two or more
-found regions). Each share is followed by its 95% interval, in brackets: how far
+found regions). Each share is followed by its 95% interval, in parentheses: how far
 it may lie from the method's true rate with this many photos (Wilson's score
 interval over the photos or scenes; for rocks one to one, a bootstrap over the
 scenes, whose rocks fail together).
@@ -643,8 +643,8 @@ _Z95 = 1.959963984540054
 def wilson_interval(successes: int, n: int, z: float = _Z95) -> tuple[float, float]:
     """Wilson's score interval of a share of ``successes`` in ``n`` photos (95% by default).
 
-    With 40 photos a condition one photo moves a share by 2.5 points, and a
-    share of 75% is as likely to come from a rate of 60% as of 86%: a
+    With 40 photos a condition one photo moves a share by 2.5 points, and 30
+    right of 40 (75%) is consistent with any rate from 60% to 86%: a
     difference inside the interval is not told apart from the photos drawn.
     Unlike the normal approximation, the interval stays inside [0, 1] and is
     not empty at 0 or n successes. NaN, NaN for no photos.
@@ -730,10 +730,10 @@ def evaluate(
     -------
     list of dict
         Rows as printed by :func:`format_table`: ``good`` (share at IoU >=
-        0.9), ``median_iou``, ``centroid_error``, ``no_rock`` for one-rock
-        conditions; ``exact_count``, ``matched``, ``merges``, ``splits`` for
-        crowded ones; ``condition == "all one-rock"`` pools the one-rock
-        photos.
+        0.9) and its ``good_interval``, ``median_iou``, ``centroid_error``,
+        ``no_rock`` for one-rock conditions; ``exact_count``, ``matched`` (each
+        with its ``_interval``), ``merges``, ``splits`` for crowded ones;
+        ``condition == "all one-rock"`` pools the one-rock photos.
     """
     conditions = _check_conditions(part, conditions)
     methods = {"candidate": as_method(segment_fn)}
@@ -1078,7 +1078,9 @@ def main(argv: list[str] | None = None) -> int:
     print(format_table(rows))
     for part in parts:
         auroc, n_good, n_bad = score_auroc(records, part)
-        if n_good or n_bad:
+        if bool(n_good) != bool(n_bad):
+            print(f"{part}: segmentation_score AUROC undefined (IoU >= 0.9: {n_good}, IoU < 0.8: {n_bad})")
+        elif n_good:
             low, high = auroc_interval(records, part)
             print(
                 f"{part}: segmentation_score AUROC {auroc:.3f} (IoU >= 0.9: {n_good}, IoU < 0.8: {n_bad}; "

@@ -471,6 +471,15 @@ def test_the_benchmark_prints_one_table_and_writes_strict_json(tmp_path, capsys)
     assert len(data["records"]) == 2
 
 
+def test_the_benchmark_says_the_auroc_is_undefined_without_wrong_outlines(capsys):
+    # The real cell alone: one photo, outlined right (IoU 0.99), none wrong.
+    assert bench.main(["--part", "real", "--conditions", "cell", "--methods", "rockscan"]) == 0
+    out = capsys.readouterr().out
+    assert "| real | cell | rockscan | 1 | 100.0% (20.7-100.0) |" in out
+    assert "real: segmentation_score AUROC undefined (IoU >= 0.9: 1, IoU < 0.8: 0)" in out
+    assert "nan" not in out
+
+
 def test_the_benchmark_refuses_an_unknown_condition_in_one_line(capsys):
     assert bench.main(["--conditions", "nope", "--methods", "otsu"]) == 2
     err = capsys.readouterr().err.strip().splitlines()
