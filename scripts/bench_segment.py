@@ -636,63 +636,6 @@ def summarize(records: list[dict]) -> list[dict]:
     return rows
 
 
-#: The normal quantile of a two-sided 95% interval.
-_Z95 = 1.959963984540054
-
-
-def wilson_interval(successes: int, n: int, z: float = _Z95) -> tuple[float, float]:
-    """Wilson's score interval of a share of ``successes`` in ``n`` photos (95% by default).
-
-    With 40 photos a condition one photo moves a share by 2.5 points, and 30
-    right of 40 (75%) is consistent with any rate from 60% to 86%: a
-    difference inside the interval is not told apart from the photos drawn.
-    Unlike the normal approximation, the interval stays inside [0, 1] and is
-    not empty at 0 or n successes. NaN, NaN for no photos.
-
-    Parameters
-    ----------
-    successes, n : int
-        Photos counted, of photos in all (0 <= successes <= n).
-    z : float
-        The normal quantile of the interval's level.
-
-    Returns
-    -------
-    (float, float)
-        The interval's ends, as shares.
-    """
-    if n <= 0:
-        return float("nan"), float("nan")
-    share = successes / n
-    scale = 1.0 + z * z / n
-    centre = (share + z * z / (2.0 * n)) / scale
-    half = z * math.sqrt(share * (1.0 - share) / n + z * z / (4.0 * n * n)) / scale
-    # At 0 or n successes an end is 0 or 1 exactly; rounding would leave it a hair off.
-    low = 0.0 if successes == 0 else max(0.0, centre - half)
-    high = 1.0 if successes == n else min(1.0, centre + half)
-    return low, high
-
-
-def matched_interval(records: list[dict], *, level: float = 0.95, seed: int = 0) -> tuple[float, float]:
-    """How far the share of rocks matched one to one moves with the scenes drawn:
-    the central ``level`` of its values over ``RESAMPLES`` bootstrap resamples of
-    the scenes (seeded).
-
-    The rocks of one scene fail together (a dark ground, a textured skin), so
-    the scenes, not the rocks, are resampled; a binomial interval over the
-    rocks would be too narrow. NaN, NaN for no scenes.
-    """
-    matched = np.array([r["matched"] for r in records], dtype=np.float64)
-    true = np.array([r["n_true"] for r in records], dtype=np.float64)
-    if not records or true.sum() == 0:
-        return float("nan"), float("nan")
-    rng = np.random.default_rng(seed)
-    picks = rng.integers(0, len(records), (RESAMPLES, len(records)))
-    shares = matched[picks].sum(axis=1) / np.maximum(true[picks].sum(axis=1), 1.0)
-    low, high = np.quantile(shares, [(1.0 - level) / 2.0, (1.0 + level) / 2.0])
-    return float(low), float(high)
-
-
 def evaluate(
     segment_fn: Callable,
     part: str = "dev",
@@ -848,6 +791,63 @@ def auroc_interval(
         if good.size and bad.size:
             values.append(_auroc(good, bad))
     low, high = np.quantile(values, [(1.0 - level) / 2.0, (1.0 + level) / 2.0])
+    return float(low), float(high)
+
+
+#: The normal quantile of a two-sided 95% interval.
+_Z95 = 1.959963984540054
+
+
+def wilson_interval(successes: int, n: int, z: float = _Z95) -> tuple[float, float]:
+    """Wilson's score interval of a share of ``successes`` in ``n`` photos (95% by default).
+
+    With 40 photos a condition one photo moves a share by 2.5 points, and 30
+    right of 40 (75%) is consistent with any rate from 60% to 86%: a
+    difference inside the interval is not told apart from the photos drawn.
+    Unlike the normal approximation, the interval stays inside [0, 1] and is
+    not empty at 0 or n successes. NaN, NaN for no photos.
+
+    Parameters
+    ----------
+    successes, n : int
+        Photos counted, of photos in all (0 <= successes <= n).
+    z : float
+        The normal quantile of the interval's level.
+
+    Returns
+    -------
+    (float, float)
+        The interval's ends, as shares.
+    """
+    if n <= 0:
+        return float("nan"), float("nan")
+    share = successes / n
+    scale = 1.0 + z * z / n
+    centre = (share + z * z / (2.0 * n)) / scale
+    half = z * math.sqrt(share * (1.0 - share) / n + z * z / (4.0 * n * n)) / scale
+    # At 0 or n successes an end is 0 or 1 exactly; rounding would leave it a hair off.
+    low = 0.0 if successes == 0 else max(0.0, centre - half)
+    high = 1.0 if successes == n else min(1.0, centre + half)
+    return low, high
+
+
+def matched_interval(records: list[dict], *, level: float = 0.95, seed: int = 0) -> tuple[float, float]:
+    """How far the share of rocks matched one to one moves with the scenes drawn:
+    the central ``level`` of its values over ``RESAMPLES`` bootstrap resamples of
+    the scenes (seeded).
+
+    The rocks of one scene fail together (a dark ground, a textured skin), so
+    the scenes, not the rocks, are resampled; a binomial interval over the
+    rocks would be too narrow. NaN, NaN for no scenes.
+    """
+    matched = np.array([r["matched"] for r in records], dtype=np.float64)
+    true = np.array([r["n_true"] for r in records], dtype=np.float64)
+    if not records or true.sum() == 0:
+        return float("nan"), float("nan")
+    rng = np.random.default_rng(seed)
+    picks = rng.integers(0, len(records), (RESAMPLES, len(records)))
+    shares = matched[picks].sum(axis=1) / np.maximum(true[picks].sum(axis=1), 1.0)
+    low, high = np.quantile(shares, [(1.0 - level) / 2.0, (1.0 + level) / 2.0])
     return float(low), float(high)
 
 
