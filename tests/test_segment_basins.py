@@ -2,12 +2,26 @@
 
 from __future__ import annotations
 
+import sys
+from pathlib import Path
+
 import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from rockscan.core.segment.cues import basin, centre_basin, centre_part, colour_gradient, core_basin
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "scripts"))
+import bench_segment
+
+from rockscan.core.segment.cues import (
+    basin,
+    centre_basin,
+    centre_disk,
+    centre_part,
+    colour_gradient,
+    core_basin,
+    edge_strength,
+)
 from rockscan.core.segment.split import opened as _opened
 from rockscan.core.segment.types import RockMask
 
@@ -90,6 +104,41 @@ def test_opening_takes_off_pebbles_that_touch_the_rock():
     opened = _opened(joined)
     assert opened is not None and iou(opened, rock) > 0.95
     assert not any((opened & p).sum() > 0.2 * p.sum() for p in pebbles)
+
+
+@pytest.mark.parametrize("index", [4044, 4070, 4112])
+def test_the_centre_basin_keeps_a_crops_neighbours_out(index):
+    # Development crops of the independent generator whose rock touches
+    # neighbours of its colour: the plain flood crosses a contact and takes in
+    # part of a neighbour (IoU 0.61, 0.87 and 0.80), the compact one stops at
+    # the rock (0.90, 0.95 and 0.90) on an edge clear enough to be taken.
+    pixels, truth, _ = bench_segment.photo("dev", "crop-neighbours", index)
+    rock = truth == 1
+    gradient = colour_gradient(pixels, pixels.dtype)
+    border = np.ones(gradient.shape, bool)
+    border[1:-1, 1:-1] = False
+    plain = basin(gradient, centre_disk(gradient.shape), border)
+    flooded = centre_basin(gradient)
+    assert plain is not None and flooded is not None
+    assert iou(flooded, rock) >= 0.88
+    assert iou(flooded, rock) >= iou(plain, rock) + 0.03
+
+
+@pytest.mark.parametrize(("condition", "index"), [("small", 4009), ("touching-pebbles", 4096)])
+def test_the_centre_basin_is_the_plain_flood_where_the_compact_one_stops_on_no_edge(condition, index):
+    # Development photos of one rock off the frame's centre: from the centre
+    # the compact flood stops on the ground's texture, about half way to the
+    # frame (edge strength 0.24 and 0.29), and the plain flood is kept.
+    pixels, _, _ = bench_segment.photo("dev", condition, index)
+    gradient = colour_gradient(pixels, pixels.dtype)
+    border = np.ones(gradient.shape, bool)
+    border[1:-1, 1:-1] = False
+    disk = centre_disk(gradient.shape)
+    compact = basin(gradient, disk, border, 0.15 / min(gradient.shape))
+    plain = basin(gradient, disk, border)
+    assert compact is not None and plain is not None and not np.array_equal(compact, plain)
+    assert edge_strength(gradient, compact) < 0.4
+    assert np.array_equal(centre_basin(gradient), plain)
 
 
 def test_a_basin_over_flat_ground_is_no_outline():

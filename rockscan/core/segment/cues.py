@@ -38,6 +38,7 @@ __all__ = [
     "centre_part",
     "colour_gradient",
     "core_basin",
+    "edge_strength",
     "frame_box",
     "grabcut",
     "grabcut_box",
@@ -194,16 +195,22 @@ def colour_gradient(work: NDArray[np.generic], dtype: np.dtype) -> NDArray[np.fl
 
 
 def basin(
-    gradient: NDArray[np.float32], inner: NDArray[np.bool_], outer: NDArray[np.bool_]
+    gradient: NDArray[np.float32],
+    inner: NDArray[np.bool_],
+    outer: NDArray[np.bool_],
+    compactness: float = 0.0,
 ) -> NDArray[np.bool_] | None:
     """What a watershed of the gradient floods from ``inner`` against ``outer``.
 
     The two floods meet on the strongest closed edge between the markers:
     rocks that touch are told apart by the edge between them even where they
     share a colour, and a soft shadow's edge gives way to the rock's sharp one.
-    None when either marker is empty.
+    With ``compactness`` > 0 (scikit-image's compact watershed) each pixel's
+    level is raised by that much per pixel of its distance from the marker
+    that reaches it, so that a flood crosses a weak contact only to what lies
+    near it. None when either marker is empty, or when the basin's edge is no
+    edge (:func:`edge_strength` under ``_EDGE_FLOOR``: a flood over flat ground).
     """
-    import cv2
     from skimage.segmentation import watershed
 
     markers = np.zeros(gradient.shape, np.int32)
@@ -211,24 +218,47 @@ def basin(
     markers[inner] = 1
     if not (markers == 1).any() or not (markers == 2).any():
         return None
-    basin = watershed(gradient, markers) == 1
-    if not basin.any():
-        return None
-    # A basin whose edge is no edge (a flood over flat ground) is no outline.
-    edge = basin ^ (cv2.erode(basin.astype(np.uint8), np.ones((3, 3), np.uint8)) > 0)
-    flat = gradient.ravel()
-    top = max(1, flat.size // 100)
-    strongest = float(np.partition(flat, flat.size - top)[flat.size - top :].mean())
-    if not float(gradient[edge].mean()) >= _EDGE_FLOOR * strongest:
+    basin = watershed(gradient, markers, compactness=compactness) == 1
+    if not basin.any() or not edge_strength(gradient, basin) >= _EDGE_FLOOR:
         return None
     return _fill_holes(basin)
 
 
+def edge_strength(gradient: NDArray[np.float32], mask: NDArray[np.bool_]) -> float:
+    """The mean gradient along a mask's edge, over the mean of the photo's strongest 1%
+    (0 where the photo has no gradient)."""
+    import cv2
+
+    edge = mask ^ (cv2.erode(mask.astype(np.uint8), np.ones((3, 3), np.uint8)) > 0)
+    flat = gradient.ravel()
+    top = max(1, flat.size // 100)
+    strongest = float(np.partition(flat, flat.size - top)[flat.size - top :].mean())
+    return float(gradient[edge].mean()) / strongest if strongest > 0 else 0.0
+
+
 def centre_basin(gradient: NDArray[np.float32]) -> NDArray[np.bool_] | None:
-    """The basin of a disk at the frame's centre (a crop is centred on its rock)."""
+    """The basin of a disk at the frame's centre against the frame's border (a crop
+    is centred on its rock), flooded compactly where that stops on a clear edge.
+
+    A crop's neighbours touch its rock along contacts that step little where
+    they share its colour, while their own texture ridges their insides: the
+    plain flood crosses a contact and fills the neighbour up to its far edge.
+    A compact flood (:func:`basin`, ``_COMPACTNESS``) leaves a neighbour that
+    lies nearer the frame than the centre to the frame's flood. On flat ground
+    it stops anywhere, about half way to the frame: it is taken only when its
+    edge holds at least ``_COMPACT_EDGE`` of the photo's strongest gradient
+    (:func:`edge_strength`), and otherwise the plain flood is.
+    """
     border = np.zeros(gradient.shape, bool)
     border[0, :] = border[-1, :] = border[:, 0] = border[:, -1] = True
-    return basin(gradient, centre_disk(gradient.shape), border)
+    disk = centre_disk(gradient.shape)
+    plain = basin(gradient, disk, border)
+    if plain is None:
+        return None
+    compact = basin(gradient, disk, border, _COMPACTNESS / min(gradient.shape))
+    if compact is not None and edge_strength(gradient, compact) >= _COMPACT_EDGE:
+        return compact
+    return plain
 
 
 def centre_disk(shape: tuple[int, int]) -> NDArray[np.bool_]:
@@ -270,6 +300,18 @@ _WATERSHED_SIGMA = 1.0
 #: Least mean gradient along a basin's edge, as a share of the mean of the
 #: photo's strongest 1%: every basin of the development photos had at least 0.48.
 _EDGE_FLOOR = 0.2
+#: The compact centre basin's compactness, times the frame's shorter side in
+#: working pixels: over that side a pixel's level rises by this much (the
+#: gradient's units). Development crops 4000-4159: the compact flood's outline
+#: at IoU >= 0.9 on 111 of 160 against 87 for the plain flood (110 and 111 at
+#: 0.25 and 0.1).
+_COMPACTNESS = 0.15
+#: Least edge strength (``edge_strength``) of a compact centre basin that is taken.
+#: Development photos of one rock where it misses the rock (73 of photos 4000-4039
+#: of four conditions): 0.29 at the median, 19% at 0.45 or more; development crops
+#: 4000-4159 where it outlines the rock and the plain flood does not (30): 0.40-0.84,
+#: 0.67 at the median.
+_COMPACT_EDGE = 0.45
 #: Radius of the centre basin's marker, as a share of the frame's shorter side.
 _WATERSHED_MARKER = 0.05
 #: Radius of an outline's core round its deepest point, as a share of that depth.
