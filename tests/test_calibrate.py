@@ -307,7 +307,7 @@ def test_library_build_takes_a_tolerance_and_show_prints_the_cutoffs(tmp_path):
     assert [r["tolerance"] for r in rows] == [0.1, 0.1]
     np.testing.assert_allclose([r["cutoff"] for r in rows], load_library(out).cutoffs)
     bad = runner.invoke(main, ["library", "build", str(spec), "-o", str(out), "--tolerance", "5"])
-    assert bad.exit_code == 1 and "--tolerance must be from 0 to 1" in bad.output
+    assert bad.exit_code == 2 and "'--tolerance': 5 is not in the range 0 <= x <= 1" in bad.output
 
 
 def test_an_explicit_distance_cutoff_replaces_the_calibrated_one(small_lib):

@@ -539,6 +539,57 @@ def test_rotation_and_scale_of_the_rock_are_found(default_lib, default_specs, in
     np.testing.assert_allclose(rock.centroid_xy, photo.truth["centroid_xy"], atol=1.0)
 
 
+CLASSIFY, MATCH = ["classify", "x.png"], ["match", "--params", "6,6,60,55,10"]
+TRIAGE, BUILD = ["triage", "."], ["library", "build", "spec.toml"]
+NOT_FINITE, OUT_OF_RANGE = "is not a finite number", "is not in the range"
+
+
+@pytest.mark.parametrize(
+    ("command", "option", "value", "message"),
+    [
+        *[(CLASSIFY, "--px-per-mm", v, NOT_FINITE) for v in ("nan", "inf", "-inf")],
+        (CLASSIFY, "--px-per-mm", "0", OUT_OF_RANGE),
+        *[
+            (CLASSIFY, o, "nan", NOT_FINITE)
+            for o in ("--distance-cutoff", "--mscore-cutoff", "--residual-cutoff")
+        ],
+        *[(MATCH, "--rotate", v, NOT_FINITE) for v in ("nan", "inf")],
+        (MATCH, "--distance-cutoff", "nan", NOT_FINITE),
+        *[
+            (TRIAGE, o, v, NOT_FINITE)
+            for o in ("--novelty-threshold", "--novelty-weight")
+            for v in ("nan", "inf")
+        ],
+        *[(TRIAGE, o, "-1", OUT_OF_RANGE) for o in ("--novelty-threshold", "--novelty-weight")],
+        *[
+            (BUILD, o, v, NOT_FINITE)
+            for o in ("--sigma", "--resolution", "--tolerance")
+            for v in ("nan", "inf")
+        ],
+        *[(BUILD, o, v, OUT_OF_RANGE) for o in ("--sigma", "--resolution") for v in ("0", "-1")],
+        *[(BUILD, "--tolerance", v, OUT_OF_RANGE) for v in ("-0.1", "1.5")],
+    ],
+)
+def test_a_number_option_out_of_its_range_is_a_usage_error(command, option, value, message):
+    # nan passes click's FloatRange (every comparison with it is false); a
+    # setting refused only when the command runs was a traceback or exit 1.
+    result = CliRunner().invoke(main, [*command, option, value])
+    assert result.exit_code == 2, result.output
+    assert f"'{option}'" in result.stderr and message in result.stderr
+    assert "Traceback" not in result.output
+
+
+@pytest.mark.parametrize("option", ["--distance-cutoff", "--mscore-cutoff", "--residual-cutoff"])
+def test_an_infinite_cutoff_turns_its_test_off(rendered, option):
+    # The cutoffs stay open to inf (a test the sample always passes) and to any
+    # finite value; nan alone is refused.
+    path = rendered["teardrop"][0]
+    value = "-inf" if option == "--mscore-cutoff" else "inf"
+    result = run("--json", option, value, path)
+    assert result.exit_code == 0, result.output
+    assert json.loads(result.stdout)["nearest"] == "teardrop"
+
+
 # ---------------------------------------------------------------- rockscan match
 
 

@@ -11,6 +11,7 @@ from typing import Any
 import click
 
 from rockscan.cli._main import (
+    Number,
     _errors,
     _library_option,
     _load_library,
@@ -38,7 +39,7 @@ from rockscan.cli._main import (
     help="Radii file: numbers at equal angles from theta=0 (text or .npy).",
 )
 @click.option(
-    "--rotate", type=float, default=0.0, show_default=True, help="Turn the outline first (degrees, CCW)."
+    "--rotate", type=Number(), default=0.0, show_default=True, help="Turn the outline first (degrees, CCW)."
 )
 @_library_option
 @_match_options

@@ -7,7 +7,7 @@ import os
 
 import click
 
-from rockscan.cli._main import DEFAULT_LIBRARY_NAME, _errors, _load_library, config_option, log, main
+from rockscan.cli._main import DEFAULT_LIBRARY_NAME, Number, _errors, _load_library, config_option, log, main
 from rockscan.core.choices import DEFAULT_TOLERANCE, FACE_KINDS, GRIDS
 
 #: Where the face options take their defaults.
@@ -40,14 +40,18 @@ def library() -> None:
     help="For --face information-shape: name of the spec shape to compare against.",
 )
 @config_option(
-    "--sigma", type=float, config=FACE, field="sigma", help="Sensor model standard deviation (map units)."
+    "--sigma",
+    type=Number(0, low_open=True),
+    config=FACE,
+    field="sigma",
+    help="Sensor model standard deviation (map units).",
 )
 @config_option(
     "--n-angles", type=int, config=FACE, field="n_angles", help="Rays per shape (rotation step 360/n)."
 )
 @config_option(
     "--resolution",
-    type=float,
+    type=Number(0, low_open=True),
     config=FACE,
     field="resolution",
     help="Section length along a ray (map units).",
@@ -64,7 +68,7 @@ def library() -> None:
 )
 @click.option(
     "--tolerance",
-    type=float,
+    type=Number(0, 1),
     default=DEFAULT_TOLERANCE,
     show_default=True,
     help="Outline noise (standard deviation, 0.2 = 20%) a sample may carry and still belong to its shape; "
@@ -101,8 +105,6 @@ def library_build(
     config = FaceConfig(
         kind=face_kind, sigma=sigma, n_angles=n_angles, resolution=resolution, grid=grid, reference=ref_params
     )
-    if not 0 <= tolerance <= 1:
-        raise SpecError(f"--tolerance must be from 0 to 1 (0.2 is 20%), got {tolerance}")
     lib = library_from_spec(shapes, face_config=config, n_components=components, tolerance=tolerance)
     save_library(lib, output)
     cutoffs = lib.cutoffs

@@ -18,6 +18,7 @@ import dataclasses
 import functools
 import importlib
 import logging
+import math
 import os
 import sys
 import time
@@ -60,6 +61,46 @@ class ConfigOption(click.Option):
         fields = {f.name: f for f in dataclasses.fields(getattr(importlib.import_module(module), name))}
         values = [fields[n].default for n in self.fields]
         return self.convert(*values) if self.convert else values[0]
+
+
+class Number(click.ParamType):
+    """A number within optional bounds; nan, and unless ``infinite`` also inf, is a
+    usage error (exit status 2), as a word where a number belongs is.
+
+    ``click.FloatRange`` lets nan through (every comparison with it is false),
+    and a setting checked later fails as the run's error, after the command
+    started. Here the command line itself is refused.
+    """
+
+    name = "float"
+
+    def __init__(
+        self,
+        low: float | None = None,
+        high: float | None = None,
+        *,
+        low_open: bool = False,
+        infinite: bool = False,
+    ) -> None:
+        self.low, self.high, self.low_open, self.infinite = low, high, low_open, infinite
+
+    def convert(self, value: Any, param: click.Parameter | None, ctx: click.Context | None) -> float:
+        number = click.FLOAT.convert(value, param, ctx)
+        if math.isnan(number) or (math.isinf(number) and not self.infinite):
+            self.fail(f"{value!r} is not a finite number.", param, ctx)
+        below = self.low is not None and (number <= self.low if self.low_open else number < self.low)
+        above = self.high is not None and number > self.high
+        if below or above:
+            self.fail(f"{number:g} is not in the range {self._range()}.", param, ctx)
+        return number
+
+    def _range(self) -> str:
+        low = "<" if self.low_open else "<="
+        if self.high is None:
+            return f"x {'>' if self.low_open else '>='} {self.low:g}"
+        if self.low is None:
+            return f"x <= {self.high:g}"
+        return f"{self.low:g} {low} x <= {self.high:g}"
 
 
 def config_option(
@@ -115,7 +156,7 @@ def _px_per_mm_option(func: Callable[..., Any]) -> Callable[..., Any]:
     return click.option(
         "--px-per-mm",
         "px_per_mm",
-        type=click.FloatRange(min=0, min_open=True),
+        type=Number(0, low_open=True),
         default=None,
         metavar="F",
         help="Photo pixels per millimetre: adds area_mm2, equivalent_diameter_mm, "
@@ -148,19 +189,19 @@ def _match_options(func: Callable[..., Any]) -> Callable[..., Any]:
         ),
         click.option(
             "--distance-cutoff",
-            type=float,
+            type=Number(infinite=True),
             default=None,
             help="Largest distance of an interesting match (the paper's theta).",
         ),
         click.option(
             "--mscore-cutoff",
-            type=float,
+            type=Number(infinite=True),
             default=None,
             help="MScore an interesting match must exceed (the paper's gamma).",
         ),
         click.option(
             "--residual-cutoff",
-            type=float,
+            type=Number(infinite=True),
             default=None,
             help="Largest distance from face space of an interesting match (Turk & Pentland).",
         ),
@@ -181,17 +222,23 @@ def _match_options(func: Callable[..., Any]) -> Callable[..., Any]:
         no_scan: bool,
         **kwargs: Any,
     ) -> Any:
+        from rockscan.core.errors import ParameterError
         from rockscan.core.match import MatchConfig
 
         preset = MatchConfig.paper() if method == "paper" else MatchConfig()
-        kwargs["match_config"] = MatchConfig(
-            metric=metric or preset.metric,
-            angle_metric=angle_metric or preset.angle_metric,
-            distance_cutoff=distance_cutoff,
-            mscore_cutoff=mscore_cutoff,
-            residual_cutoff=residual_cutoff,
-            scan=not no_scan,
-        )
+        try:
+            kwargs["match_config"] = MatchConfig(
+                metric=metric or preset.metric,
+                angle_metric=angle_metric or preset.angle_metric,
+                distance_cutoff=distance_cutoff,
+                mscore_cutoff=mscore_cutoff,
+                residual_cutoff=residual_cutoff,
+                scan=not no_scan,
+            )
+        except ParameterError as exc:
+            # Built before the command runs, outside its error handling: the
+            # options themselves are at fault.
+            raise click.UsageError(str(exc)) from None
         return func(*args, **kwargs)
 
     for option in reversed(options):

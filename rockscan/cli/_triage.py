@@ -13,6 +13,7 @@ from typing import Any
 import click
 
 from rockscan.cli._main import (
+    Number,
     _errors,
     _fail,
     _library_option,
@@ -62,7 +63,7 @@ from rockscan.core.choices import NOVELTY_METRICS
 )
 @click.option(
     "--novelty-threshold",
-    type=click.FloatRange(min=0),
+    type=Number(0),
     default=None,
     help="Novelty above which a rock is novel (default: half the median spacing of the library's shapes).",
 )
@@ -75,7 +76,7 @@ from rockscan.core.choices import NOVELTY_METRICS
 )
 @click.option(
     "--novelty-weight",
-    type=click.FloatRange(min=0),
+    type=Number(0),
     default=None,
     help="With --observed, what a novel rock's interest is (default: the library's largest shape "
     "interest; 0: novelty does not change the ranking).",
