@@ -3,6 +3,8 @@ truth, the rule that picks the main rock, bad input, and invariance."""
 
 from __future__ import annotations
 
+import warnings
+
 import numpy as np
 import pytest
 from hypothesis import example, given, settings
@@ -290,6 +292,55 @@ def test_a_photo_without_a_rock_is_a_no_rock_error():
 def test_bad_pixels_are_refused_with_the_fix(pixels, message):
     with pytest.raises(ParameterError, match=message):
         segment(pixels)
+
+
+def test_a_float_photo_of_eight_bit_values_is_told_to_scale_them():
+    # Clipped to [0, 1], it was one flat white: "nothing stands out".
+    disc = coverage((120, 160), (60, 80), (30, 30))
+    with pytest.raises(ParameterError, match="divide by 255"):
+        segment(50.0 + 150.0 * disc)
+    assert segment((50.0 + 150.0 * disc) / 255.0).rocks[0].area == pytest.approx(np.pi * 900, rel=0.02)
+
+
+@pytest.mark.parametrize(
+    "pixels",
+    [
+        # Signed: the negatives are no light (their logarithm was nan).
+        lambda disc: np.where(disc > 0.5, 100, -100).astype(np.int8),
+        # Huge floats are white, not an overflow.
+        lambda disc: np.where(disc > 0.5, 1e300, 0.2),
+        lambda disc: np.where(disc > 0.5, 30000, -30000).astype(np.int16),
+    ],
+)
+def test_signed_and_huge_pixels_are_read_without_a_warning(pixels):
+    disc = coverage((120, 160), (60, 80), (30, 30))
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        rock = segment(pixels(disc)).rocks[0]
+    assert rock.area == pytest.approx(np.pi * 900, rel=0.02)
+
+
+def test_a_noise_free_ground_of_one_level_with_two_rocks_outlines_the_larger():
+    # Nothing lay above the ground ring's 40th percentile, and an empty
+    # percentile raised an IndexError (through `rockscan classify`, a traceback).
+    rows, cols = np.mgrid[0:200, 0:300]
+    small = (rows - 50) ** 2 + (cols - 60) ** 2 <= 30**2
+    big = (rows - 140) ** 2 + (cols - 200) ** 2 <= 40**2
+    pixels = np.where(small | big, 0.8, 0.2)
+    rock = segment(pixels).rocks[0]
+    assert rock.area == pytest.approx(np.count_nonzero(big), rel=0.02)
+    assert segment(pixels, all_rocks=True).n_rocks == 2
+
+
+@pytest.mark.parametrize("side", [56, 60, 64, 72, 80, 84])
+def test_a_clean_disc_is_found_in_a_frame_under_a_hundred_pixels(side):
+    # The border band is then under 4 pixels wide: every fourth pixel of it lay
+    # on two sides only, the lighting fitted to them tilted across the other
+    # two, and the ground rose above the rock's threshold ("nothing stands out").
+    radius = 0.31 * side
+    disc = coverage((side, side), (side / 2, side / 2), (radius, radius))
+    rock = segment(0.2 + 0.6 * disc).rocks[0]
+    assert rock.area == pytest.approx(np.pi * radius**2, rel=0.05)
 
 
 @pytest.mark.parametrize(

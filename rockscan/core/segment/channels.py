@@ -54,6 +54,12 @@ def _check_pixels(pixels: NDArray[np.generic]) -> NDArray[np.generic]:
         raise ParameterError(f"photo pixels must be numbers, got dtype {arr.dtype}")
     if arr.dtype.kind == "f" and not np.all(np.isfinite(arr)):
         raise ParameterError("photo pixels must be finite (no NaN or infinity)")
+    if arr.dtype.kind == "f" and np.count_nonzero(arr > 1.0) > arr.size // 2:
+        # Clipped to [0, 1], such a photo is one flat white: say why.
+        raise ParameterError(
+            f"float photo pixels must lie in [0, 1], got most above 1 (up to {float(arr.max()):g}); "
+            "scale them (8-bit values: divide by 255)"
+        )
     return arr
 
 
@@ -103,10 +109,14 @@ def _at_scale(
 
 
 def _unit(arr: NDArray[np.generic], dtype: np.dtype) -> NDArray[np.float32]:
-    """Values in [0, 1] as float32: integers by their type's maximum, floats clipped."""
-    if dtype.kind in "ui":
+    """Values in [0, 1] as float32: integers by their type's maximum (a signed
+    type's negatives as 0, no light), floats clipped (before they are narrowed,
+    so that a huge value is 1, not an overflow)."""
+    if dtype.kind == "u":
         return arr.astype(np.float32) * np.float32(1.0 / np.iinfo(dtype).max)
-    return np.clip(arr.astype(np.float32), 0.0, 1.0)
+    if dtype.kind == "i":
+        return np.maximum(arr, 0).astype(np.float32) * np.float32(1.0 / np.iinfo(dtype).max)
+    return np.clip(arr, 0.0, 1.0).astype(np.float32)
 
 
 def cielab(unit: NDArray[np.float32]) -> NDArray[np.float32]:

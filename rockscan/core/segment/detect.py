@@ -43,6 +43,11 @@ def _norm_coords(n: int) -> NDArray[np.float64]:
     return (np.arange(n) + 0.5) / n * 2.0 - 1.0
 
 
+#: Shortest side from which the lighting is fitted to every fourth ground pixel each way
+#: (``border_band`` is then at least 4 pixels wide).
+_SAMPLED = 100
+
+
 def _fit_lighting(image: NDArray[np.float32], ground: NDArray[np.bool_], degree: int) -> NDArray[np.float64]:
     """Polynomial surface through the ground pixels; its coefficients.
 
@@ -51,10 +56,13 @@ def _fit_lighting(image: NDArray[np.float32], ground: NDArray[np.bool_], degree:
     pebble or a shadow then do not bend the surface.
     """
     rows, cols = image.shape
-    # Every fourth pixel each way is plenty for a smooth surface and sixteen times cheaper.
+    # Every fourth pixel each way is plenty for a smooth surface and sixteen times
+    # cheaper, where the border band is at least 4 pixels wide: a narrower one
+    # (a frame under _SAMPLED pixels across) would be sampled along two sides
+    # only, and the surface would be free to tilt across the other two.
     rr, cc = np.nonzero(ground[::4, ::4])
     rr, cc = rr * 4, cc * 4
-    if rr.size < 3 * (degree + 1) ** 2:
+    if rr.size < 3 * (degree + 1) ** 2 or min(rows, cols) < _SAMPLED:
         rr, cc = np.nonzero(ground)
     if rr.size == 0:
         return np.array([float(image.mean())])

@@ -109,7 +109,9 @@ def shade_on(gray: NDArray[np.floating], mask: NDArray[np.bool_]) -> NDArray[np.
     if step < MIN_STEP:
         return mask
     upper = ring_values[ring_values > np.percentile(ring_values, 40.0)]
-    spread = float(np.subtract(*np.percentile(upper, [75.0, 25.0])))
+    # A ground of one level over most of the ring (a drawn or clipped photo)
+    # leaves nothing above its 40th percentile: its spread is the ring's.
+    spread = float(np.subtract(*np.percentile(upper if upper.size else ring_values, [75.0, 25.0])))
     touching = distance <= 2.0
     dark = (fine < ground - max(DARK, NOISE * spread)) & (distance > 0) & (distance <= REACH * radius)
     dark = ndimage.binary_opening(dark, _disk(1))
