@@ -612,10 +612,16 @@ def _angles(
         order = int(library.symmetry[k])
         period = 360.0 / order if order > 0 else 0.0
         angle_deg = float(np.mod(shift * step_deg, period)) if period else 0.0
-        if angle_deg >= period:  # a tiny negative angle rounds up to the period
+        # A tiny negative angle (the parabola's offset of a sample at 0) comes
+        # back from the modulo as the period less a rounding: it is 0.
+        if angle_deg >= period - _ANGLE_ROUNDING:
             angle_deg = 0.0
         angles[k] = angle_deg
     return angles, angle_deg
+
+
+#: Degrees under the symmetry's period within which an angle is the period itself, i.e. 0.
+_ANGLE_ROUNDING = 1e-4
 
 
 def _clean_enough(radii: NDArray[np.float64], library: Library, noise: float | None = None) -> bool:
