@@ -101,6 +101,34 @@ def test_bad_masks_are_refused():
         trace_outline(np.ones((5, 5), bool), smooth_sigma=-1.0)
 
 
+@pytest.mark.parametrize(
+    ("options", "message"),
+    [
+        # nan gave an outline of nan vertices, -1 one of negative coordinates.
+        ({"scale": np.nan}, "scale must be positive and finite"),
+        ({"scale": -1.0}, "scale must be positive and finite"),
+        ({"scale": 0.0}, "scale must be positive and finite"),
+        ({"scale": (1.0, np.inf)}, "scale must be positive and finite"),
+        ({"scale": (1, 2, 3)}, "scale must be one or two numbers"),
+        ({"scale": "a"}, "scale must be one or two numbers"),
+        ({"origin_rowcol": (np.nan, 0)}, "origin_rowcol must be two finite numbers"),
+        ({"origin_rowcol": (1, 2, 3)}, "origin_rowcol must be two finite numbers"),
+    ],
+)
+def test_a_scale_or_origin_that_places_no_outline_is_refused(options, message):
+    disc = np.hypot(*np.mgrid[-32:32, -32:32]) <= 20
+    with pytest.raises(ParameterError, match=message):
+        trace_outline(disc, **options)
+
+
+def test_a_smoothing_wider_than_the_rock_says_so_at_once():
+    # OpenCV's kernel of 6 sigma took minutes at a sigma of a million.
+    disc = np.hypot(*np.mgrid[-32:32, -32:32]) <= 20
+    with pytest.raises(NoRockFoundError, match="a smoothing of 1e"):
+        trace_outline(disc, smooth_sigma=1e6)
+    assert trace_outline(disc, smooth_sigma=2.0).area_px == pytest.approx(np.pi * 400, rel=0.03)
+
+
 # ---------------------------------------------------------------- rays that cross more than once
 
 

@@ -64,6 +64,38 @@ def test_bad_contours_are_rejected():
         contour_radii(np.array([[0, 0], [1, np.nan], [1, 1]]), [0, 0], 360)
 
 
+@pytest.mark.parametrize(
+    ("contour", "centroid", "n_angles", "message"),
+    [
+        # A (2, n) contour was read as n/2 points of scrambled coordinates, an
+        # (n, 3) one as 3n/2 points: radii of a circle of 10 from 0.4 to 14.
+        ("transposed", (0, 0), 360, r"must be \(n, 2\)"),
+        ("three columns", (0, 0), 360, r"must be \(n, 2\)"),
+        ("flat", (0, 0), 360, r"must be \(n, 2\)"),
+        ("words", (0, 0), 360, "must be numbers"),
+        ("circle", (0, 0, 0), 360, "two finite numbers"),
+        ("circle", (np.nan, 0), 360, "two finite numbers"),
+        ("circle", (0, 0), 10**10, "n_angles must be an integer from 8"),
+        ("circle", (0, 0), 7.5, "n_angles must be an integer from 8"),
+    ],
+)
+def test_contours_centroids_and_ray_counts_of_the_wrong_form_are_refused(
+    contour, centroid, n_angles, message
+):
+    t = np.linspace(0, 2 * np.pi, 100, endpoint=False)
+    circle = np.c_[10 * np.sin(t), 10 * np.cos(t)]
+    given = {
+        "transposed": circle.T,
+        "three columns": np.c_[circle, circle[:, 0]],
+        "flat": circle.ravel(),
+        "words": "a circle",
+        "circle": circle,
+    }[contour]
+    with pytest.raises(ParameterError, match=message):
+        contour_radii(given, centroid, n_angles)
+    np.testing.assert_allclose(contour_radii(circle, (0, 0), 360), 10.0, rtol=1e-3)
+
+
 def test_polygon_centroid_of_a_triangle():
     tri = np.array([[0.0, 0.0], [3.0, 0.0], [0.0, 3.0]])
     np.testing.assert_allclose(polygon_centroid_xy(tri), [1.0, 1.0])

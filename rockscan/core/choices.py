@@ -24,3 +24,8 @@ RENDER_POLARITIES = ("random", "light", "dark")
 POLARITIES = ("auto", "dark", "light")
 #: Outline noise a library tolerates unless told otherwise: the paper's claim of 20%.
 DEFAULT_TOLERANCE = 0.2
+#: Most rays a library's faces may have: a tenth of a degree (a face of 3,600 rays of 50
+#: sections is 1.4 MB; a library past its loader's budget per array could not be read).
+MAX_FACE_ANGLES = 3600
+#: Largest side of the paper's Cartesian grid map (4096 x 4096 cells are 128 MiB of floats).
+MAX_CARTESIAN = 4096

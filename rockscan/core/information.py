@@ -30,7 +30,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from scipy.special import ndtr
 
-from rockscan.core.choices import FACE_KINDS, GRIDS
+from rockscan.core.choices import FACE_KINDS, GRIDS, MAX_CARTESIAN, MAX_FACE_ANGLES
 from rockscan.core.errors import ParameterError
 from rockscan.core.superformula import SuperformulaParams
 
@@ -122,10 +122,18 @@ class FaceConfig:
                 and not (isinstance(value, float) and value.is_integer())
             ):
                 raise ParameterError(f"{name} must be an integer, got {value!r}")
-        if isinstance(self.n_angles, bool) or int(self.n_angles) != self.n_angles or self.n_angles < 8:
-            raise ParameterError(f"n_angles must be an integer >= 8, got {self.n_angles!r}")
-        if int(self.cartesian_size) != self.cartesian_size or self.cartesian_size < 8:
-            raise ParameterError(f"cartesian_size must be an integer >= 8, got {self.cartesian_size!r}")
+        if (
+            isinstance(self.n_angles, bool)
+            or int(self.n_angles) != self.n_angles
+            or not 8 <= self.n_angles <= MAX_FACE_ANGLES
+        ):
+            raise ParameterError(
+                f"n_angles must be an integer >= 8 and <= {MAX_FACE_ANGLES}, got {self.n_angles!r}"
+            )
+        if int(self.cartesian_size) != self.cartesian_size or not 8 <= self.cartesian_size <= MAX_CARTESIAN:
+            raise ParameterError(
+                f"cartesian_size must be an integer >= 8 and <= {MAX_CARTESIAN}, got {self.cartesian_size!r}"
+            )
         if self.n_sections < 2:
             raise ParameterError("resolution must be at most half of ray_length")
         if self.kind == "information-shape" and self.reference is None:

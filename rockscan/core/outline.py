@@ -68,8 +68,17 @@ def work_to_photo(
     Working pixel i covers photo pixels ``[i*scale, (i+1)*scale)``, so its
     centre is at ``(i + 0.5) * scale - 0.5``.
     """
-    scale = np.broadcast_to(np.asarray(scale, dtype=np.float64), (2,))
-    origin = np.asarray(origin_rowcol, dtype=np.float64)
+    try:
+        scale = np.broadcast_to(np.asarray(scale, dtype=np.float64), (2,))
+        origin = np.asarray(origin_rowcol, dtype=np.float64)
+    except (TypeError, ValueError):
+        raise ParameterError(
+            f"scale must be one or two numbers and origin_rowcol two, got {scale!r} and {origin_rowcol!r}"
+        ) from None
+    if not (np.all(np.isfinite(scale)) and np.all(scale > 0)):
+        raise ParameterError(f"scale must be positive and finite, got {scale.tolist()}")
+    if origin.shape != (2,) or not np.all(np.isfinite(origin)):
+        raise ParameterError(f"origin_rowcol must be two finite numbers, got {origin_rowcol!r}")
     return (np.asarray(rowcol, dtype=np.float64) + origin + 0.5) * scale - 0.5
 
 
@@ -138,6 +147,13 @@ def trace_outline(
     top, left = int(rows_in[0]), int(cols_in[0])
     values = values[top : rows_in[-1] + 1, left : cols_in[-1] + 1]
     padded = np.pad(np.clip(values, 0.0, 1.0), 2)
+    if sigma > max(padded.shape):
+        # Blurred wider than it is, a rock leaves no level at 0.5 (and OpenCV's
+        # kernel of 6 sigma would take minutes to say so).
+        raise NoRockFoundError(
+            f"no rock found: a smoothing of {sigma:g} pixels leaves no outline of a rock "
+            f"{max(values.shape)} pixels across"
+        )
     if sigma > 0:
         padded = cv2.GaussianBlur(padded, (0, 0), sigma)
     contours = [c for c in find_contours(padded, 0.5) if len(c) >= 4]

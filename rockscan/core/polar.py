@@ -103,7 +103,15 @@ def contour_radii(
     the cost is linear in the number of vertices plus crossings.
     """
     n_angles = _check_n_angles(n_angles)
-    xy = xy_from_rowcol(contour_rowcol, centroid_rowcol)
+    contour = _numbers(contour_rowcol, "contour_rowcol")
+    centroid = _numbers(centroid_rowcol, "centroid_rowcol")
+    if contour.ndim != 2 or contour.shape[1] != 2:
+        raise ParameterError(f"contour_rowcol must be (n, 2) (row, col) vertices, got shape {contour.shape}")
+    if centroid.shape != (2,) or not np.all(np.isfinite(centroid)):
+        raise ParameterError(
+            f"centroid_rowcol must be two finite numbers (row, col), got {centroid_rowcol!r}"
+        )
+    xy = xy_from_rowcol(contour, centroid)
     if len(xy) < 3 or not np.all(np.isfinite(xy)):
         raise ParameterError("contour_rowcol needs at least 3 finite (row, col) vertices")
     p = xy
@@ -395,7 +403,25 @@ def symmetry_order(radii: ArrayLike, *, tol: float = 1e-4, max_order: int = 36) 
     return 1
 
 
+def _numbers(values: ArrayLike, name: str) -> NDArray[np.float64]:
+    """``values`` as an array of float, or a ParameterError naming them."""
+    try:
+        return np.asarray(values, dtype=np.float64)
+    except (TypeError, ValueError):
+        raise ParameterError(f"{name} must be numbers, got {type(values).__name__}") from None
+
+
+#: Most rays an outline is sampled at (a degree is 360; a million rays are 8 MB of radii).
+MAX_ANGLES = 1 << 20
+
+
 def _check_n_angles(n_angles: int) -> int:
-    if isinstance(n_angles, bool) or int(n_angles) != n_angles or n_angles < 8:
-        raise ParameterError(f"n_angles must be an integer >= 8, got {n_angles!r}")
+    if (
+        isinstance(n_angles, bool)
+        or not isinstance(n_angles, (int, float, np.integer, np.floating))
+        or not np.isfinite(n_angles)
+        or int(n_angles) != n_angles
+        or not 8 <= n_angles <= MAX_ANGLES
+    ):
+        raise ParameterError(f"n_angles must be an integer from 8 to {MAX_ANGLES}, got {n_angles!r}")
     return int(n_angles)
