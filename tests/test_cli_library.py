@@ -125,8 +125,10 @@ def test_match_with_a_spec_as_library_and_the_papers_method(runner, tmp_path):
         (["match"], 2, "exactly one of --params or --radii"),
         (["match", "--params", "1,2,3"], 2, "5 or 7"),
         (["match", "--params", "a,b,c,d,e"], 2, "5 or 7"),
-        (["match", "--params", "4,4,0,1,1"], 1, "n1 must be non-zero"),
-        (["match", "--params", "2,4,1,1,1"], 1, "unbounded"),
+        # Parameters no Superformula has are a bad option value (exit 2), as a word is.
+        (["match", "--params", "4,4,0,1,1"], 2, "n1 must be non-zero"),
+        (["match", "--params", "2,4,1,1,1"], 2, "unbounded"),
+        (["match", "--params", "4,4,2,,2,2"], 2, "5 or 7"),
         (["match", "--radii", "/nonexistent/r.txt"], 1, "not found"),
         (["match", "--params", "4,4,2,2,2", "--library", "/nonexistent.npz"], 1, "library file not found"),
     ],

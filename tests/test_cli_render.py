@@ -206,8 +206,9 @@ def test_option_defaults_are_the_settings_dataclasses_defaults():
             rf"{option} \S+ (?:(?! --[a-z]).)*?\[default: {re.escape(str(value))}\]", render_help
         ), option
     for option, value in [("--sigma", face.sigma), ("--n-angles", face.n_angles), ("--grid", face.grid)]:
+        # A bounded option's range follows its default: "[default: 360; 8<=x<=3600]".
         assert re.search(
-            rf"{option} \S+ (?:(?! --[a-z]).)*?\[default: {re.escape(str(value))}\]", build_help
+            rf"{option} \S+ (?:(?! --[a-z]).)*?\[default: {re.escape(str(value))}[;\]]", build_help
         ), option
 
 

@@ -236,6 +236,22 @@ def test_radii_files(tmp_path):
     (tmp_path / "bad.txt").write_text("1 2 three")
     with pytest.raises(ParameterError, match="cannot read radii"):
         read_radii(tmp_path / "bad.txt")
+    # A table of two columns would be read with its columns interleaved.
+    (tmp_path / "table.txt").write_text("\n".join(f"{i} {i + 1}" for i in range(1, 11)))
+    with pytest.raises(ParameterError, match="not a table"):
+        read_radii(tmp_path / "table.txt")
+    for bad, message in [
+        (np.zeros(20, dtype=[("a", "f8"), ("b", "f8")]), "real numbers"),
+        (np.ones(20, complex), "real numbers"),
+        (np.ones(20, bool), "real numbers"),
+        (np.ones((2, 10)), "1-D"),
+    ]:
+        np.save(tmp_path / "bad.npy", bad)
+        with pytest.raises(ParameterError, match=message):
+            read_radii(tmp_path / "bad.npy")
+    (tmp_path / "huge.txt").write_text("1e308 " * 8)
+    with pytest.raises(ParameterError, match="at most 1e"):
+        read_radii(tmp_path / "huge.txt")
     (tmp_path / "short.txt").write_text("1 2 3")
     with pytest.raises(ParameterError, match="at least 8"):
         read_radii(tmp_path / "short.txt")

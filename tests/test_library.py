@@ -84,7 +84,7 @@ def test_bad_libraries_are_refused(names, radii, message):
     ("kwargs", "message"),
     [
         ({"name": "Bad Name", "params": SuperformulaParams(4, 4, 2, 2, 2)}, "must match"),
-        ({"name": "x"}, "either Superformula parameters or images"),
+        ({"name": "x"}, "give Superformula parameters or example images"),
         ({"name": "x", "params": SuperformulaParams(4, 4, 2, 2, 2), "images": ("a.png",)}, "not both"),
         ({"name": "x", "params": SuperformulaParams(4, 4, 2, 2, 2), "interest": -1}, "interest"),
     ],

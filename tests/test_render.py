@@ -241,7 +241,7 @@ def test_polarity_and_shadow():
         ({"jpeg_quality": 0}, "jpeg_quality must be between 1 and 100"),
         ({"bit_depth": 12}, "bit_depth must be 8 or 16"),
         ({"bit_depth": 16, "jpeg_quality": 90}, "JPEG photos are 8 bits"),
-        ({"pebbles": -1}, "pebbles must be 0 or more"),
+        ({"pebbles": -1}, "pebbles must be from 0 to"),
         ({"outline_points": 4}, "outline_points must be at least 8"),
         ({"angle_deg": float("inf")}, "angle_deg must be a finite number"),
         ({"center_xy": (1.0,)}, "center_xy must be"),

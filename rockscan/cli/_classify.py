@@ -64,15 +64,22 @@ def match_cmd(
     lib = _load_library(library_path)
     n = lib.face_config.n_angles
     if params_text is not None:
+        from rockscan.core.errors import ParameterError
+
+        fields = params_text.replace(" ", "").split(",")
         try:
-            values = [float(v) for v in params_text.replace(" ", "").split(",") if v]
+            # An empty field is no number: "3,,3,2,2,2" is not five parameters.
+            values = [float(v) for v in fields]
         except ValueError:
             raise click.BadParameter(
                 "must be 5 or 7 comma-separated numbers", param_hint="--params"
             ) from None
         if len(values) not in (5, 7):
             raise click.BadParameter("must be 5 or 7 comma-separated numbers", param_hint="--params")
-        radii = shape_radii(SuperformulaParams(*values), n)
+        try:
+            radii = shape_radii(SuperformulaParams(*values), n)
+        except ParameterError as exc:
+            raise click.BadParameter(str(exc), param_hint="--params") from None
     else:
         radii = read_radii(radii_path)
         if radii.size != n:

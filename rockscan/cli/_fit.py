@@ -11,7 +11,7 @@ from typing import Any
 import click
 
 from rockscan.cli._library import library
-from rockscan.cli._main import _errors
+from rockscan.cli._main import _check_output, _errors
 
 #: Rays an outline is measured at (the library's default).
 _N_ANGLES = 360
@@ -44,13 +44,21 @@ _N_ANGLES = 360
     is_flag=True,
     help="Report one JSON object per input (the spec then goes only to -o).",
 )
-@click.option("--seed", type=int, default=0, show_default=True, help="Seed of the fit's random restarts.")
+@click.option("--overwrite", is_flag=True, help="Replace a plot that exists (default: refuse).")
+@click.option(
+    "--seed",
+    type=click.IntRange(min=0),
+    default=0,
+    show_default=True,
+    help="Seed of the fit's random restarts.",
+)
 @_errors
 def library_fit(
     inputs: tuple[str, ...],
     output: str | None,
     append: bool,
     plot_path: str | None,
+    overwrite: bool,
     as_json: bool,
     seed: int,
 ) -> None:
@@ -75,8 +83,8 @@ def library_fit(
 
     if append and output is None:
         raise click.UsageError("--append needs -o SPEC (the spec to add the shapes to)")
-    _check_folder(plot_path, "--plot")
-    _check_folder(output, "--output")
+    _check_output(output, "--output", suffixes=(".toml",), inputs=inputs)
+    _check_output(plot_path, "--plot", inputs=inputs, overwrite=overwrite)
     existing = read_spec(output) if append and os.path.exists(output or "") else []
     taken = {shape.name for shape in existing}
     report = sys.stdout if output is not None or as_json else sys.stderr
@@ -140,13 +148,6 @@ def _outline_radii(path: str) -> Any:
     return rocks[0].radii
 
 
-def _check_folder(path: str | None, hint: str) -> None:
-    if path is not None:
-        folder = os.path.dirname(os.path.abspath(path))
-        if not os.path.isdir(folder):
-            raise click.BadParameter(f"folder {folder!r} does not exist", param_hint=hint)
-
-
 # ---------------------------------------------------------------- family
 
 
@@ -208,7 +209,7 @@ def library_family(
             vary.append(parse_vary(text))
         except ParameterError as exc:
             raise click.BadParameter(str(exc), param_hint="--vary") from None
-    _check_folder(output, "--output")
+    _check_output(output, "--output", suffixes=(".toml",), inputs=(spec,))
     shapes = read_spec(spec)
     by_name = {shape.name: shape for shape in shapes}
     if name not in by_name:

@@ -7,8 +7,17 @@ import os
 
 import click
 
-from rockscan.cli._main import DEFAULT_LIBRARY_NAME, Number, _errors, _load_library, config_option, log, main
-from rockscan.core.choices import DEFAULT_TOLERANCE, FACE_KINDS, GRIDS
+from rockscan.cli._main import (
+    DEFAULT_LIBRARY_NAME,
+    Number,
+    _check_output,
+    _errors,
+    _load_library,
+    config_option,
+    log,
+    main,
+)
+from rockscan.core.choices import DEFAULT_TOLERANCE, FACE_KINDS, GRIDS, MAX_FACE_ANGLES
 
 #: Where the face options take their defaults.
 FACE = "rockscan.core.information.FaceConfig"
@@ -47,7 +56,11 @@ def library() -> None:
     help="Sensor model standard deviation (map units).",
 )
 @config_option(
-    "--n-angles", type=int, config=FACE, field="n_angles", help="Rays per shape (rotation step 360/n)."
+    "--n-angles",
+    type=click.IntRange(8, MAX_FACE_ANGLES),
+    config=FACE,
+    field="n_angles",
+    help="Rays per shape (rotation step 360/n).",
 )
 @config_option(
     "--resolution",
@@ -64,7 +77,10 @@ def library() -> None:
     help="'cartesian' is the paper's grid map (slower; for reproduction).",
 )
 @click.option(
-    "--components", type=int, default=None, help="Keep at most this many eigenfaces (default: all non-zero)."
+    "--components",
+    type=click.IntRange(min=1),
+    default=None,
+    help="Keep at most this many eigenfaces (default: all non-zero).",
 )
 @click.option(
     "--tolerance",
@@ -89,6 +105,8 @@ def library_build(
 ) -> None:
     """Build a library file from a spec (TOML with [[shape]] tables), with cutoffs calibrated for it."""
     from rockscan.core.errors import SpecError
+
+    _check_output(output, "--output", suffixes=(".npz",), inputs=(spec,))
     from rockscan.core.information import FaceConfig
     from rockscan.io import read_spec, save_library
     from rockscan.run.pipeline import library_from_spec
@@ -126,16 +144,18 @@ def library_build(
     default=None,
     help="Draw the shapes to a PNG: --plot OUT.png, or --plot alone for LIBNAME.png here.",
 )
+@click.option("--overwrite", is_flag=True, help="Replace a plot that exists (default: refuse).")
 @click.option("--json", "as_json", is_flag=True, help="One JSON object per shape.")
 @_errors
-def library_show(lib: str, plot_path: str | None, as_json: bool) -> None:
+def library_show(lib: str, plot_path: str | None, overwrite: bool, as_json: bool) -> None:
     """List a library's shapes: LIB is a .npz library, a .toml spec, or 'default'
     (the built-in library, also when LIB is left out)."""
     import numpy as np
 
-    library_obj = _load_library(lib)
     if plot_path == "":
         plot_path = os.path.splitext(os.path.basename(lib))[0] + ".png"
+    _check_output(plot_path, "--plot", inputs=(lib,), overwrite=overwrite)
+    library_obj = _load_library(lib)
     face = library_obj.face_config
     cutoffs = library_obj.cutoffs
     calibration = library_obj.calibration

@@ -110,6 +110,36 @@ def config_option(
     return click.option(*names, cls=ConfigOption, config=config, field=field, **kwargs)
 
 
+def _check_output(
+    path: str | None,
+    hint: str,
+    *,
+    suffixes: tuple[str, ...] = (),
+    inputs: Iterable[str] = (),
+    overwrite: bool | None = None,
+) -> None:
+    """Refuse, as a usage error and before any work, an output that would lose what
+    the user has: a name without the file kind it writes (``suffixes``), a folder
+    that is missing, one of the command's own ``inputs`` (a spec written over by
+    its library, a photo by its plot), or, where the command offers
+    ``--overwrite`` (``overwrite`` not None), a file that exists."""
+    if path is None:
+        return
+    if suffixes and not path.lower().endswith(suffixes):
+        raise click.BadParameter(f"{path!r} must end in {' or '.join(suffixes)}", param_hint=hint)
+    folder = os.path.dirname(os.path.abspath(path))
+    if not os.path.isdir(folder):
+        raise click.BadParameter(f"folder {folder!r} does not exist", param_hint=hint)
+    if os.path.exists(path):
+        for given in inputs:
+            if os.path.exists(given) and os.path.samefile(path, given):
+                message = f"{path} is an input of this command; give another name"
+                raise click.BadParameter(message, param_hint=hint)
+        if overwrite is False:
+            message = f"{path} exists; give --overwrite to replace, or another name"
+            raise click.BadParameter(message, param_hint=hint)
+
+
 def _fail(message: str, status: int = 1) -> None:
     click.echo(f"rockscan: error: {message}", err=True)
     sys.exit(status)

@@ -38,7 +38,7 @@ RENDER = "rockscan.core.render.RenderConfig"
 )
 @click.option(
     "--rocks",
-    type=click.IntRange(min=1),
+    type=click.IntRange(1, 10_000),
     default=1,
     show_default=True,
     help="Rocks per photo; with more than one, each photo shows shapes drawn at random from the "
@@ -46,7 +46,11 @@ RENDER = "rockscan.core.render.RenderConfig"
 )
 @click.option("--shape", "shape_names", multiple=True, help="Only these spec shapes (repeatable).")
 @click.option(
-    "--seed", type=int, default=0, show_default=True, help="Random seed; the same seed draws the same photos."
+    "--seed",
+    type=click.IntRange(min=0),
+    default=0,
+    show_default=True,
+    help="Random seed; the same seed draws the same photos.",
 )
 @config_option(
     "--size", config=RENDER, field=("rows", "cols"), convert="{}x{}".format, help="Photo size ROWSxCOLS."

@@ -14,6 +14,7 @@ import click
 
 from rockscan.cli._main import (
     Number,
+    _check_output,
     _errors,
     _fail,
     _library_option,
@@ -137,20 +138,7 @@ def triage(
     from rockscan.run.pipeline import ClassifyConfig
     from rockscan.run.triage import TriageConfig, triage_folder
 
-    if workers is not None and scheduler is not None:
-        raise click.UsageError("give -j/--workers or --scheduler, not both")
-    if resume and overwrite:
-        raise click.UsageError("give --resume or --overwrite, not both")
-    if resume and report_path is None:
-        raise click.UsageError("--resume needs the report to continue: -o REPORT")
-    if report_path is not None:
-        from rockscan.core.errors import ParameterError
-        from rockscan.io.report import report_format
-
-        try:
-            report_format(report_path)
-        except ParameterError as exc:
-            raise click.BadParameter(str(exc), param_hint="-o/--output") from None
+    _check_options(workers, scheduler, resume, overwrite, report_path, observed_path)
     lib = _load_library(library_path)
     config = TriageConfig(
         classify=ClassifyConfig(match=match_config, px_per_mm=px_per_mm),
@@ -193,6 +181,43 @@ def triage(
     if not quiet:
         _print_summary(summary, folder, to_stderr=report_path is None)
     sys.exit(1 if summary.failed else 0)
+
+
+def _check_options(
+    workers: int | None,
+    scheduler: str | None,
+    resume: bool,
+    overwrite: bool,
+    report_path: str | None,
+    observed_path: str | None,
+) -> None:
+    """Usage errors of a triage run, found before any photo is classified (an
+    observed library that cannot be written at the end would lose what the run
+    learnt; a scheduler's address that cannot work would leave a report behind)."""
+    from rockscan.core.errors import ParameterError
+
+    if workers is not None and scheduler is not None:
+        raise click.UsageError("give -j/--workers or --scheduler, not both")
+    if resume and overwrite:
+        raise click.UsageError("give --resume or --overwrite, not both")
+    if resume and report_path is None:
+        raise click.UsageError("--resume needs the report to continue: -o REPORT")
+    if report_path is not None:
+        from rockscan.io.report import report_format
+
+        try:
+            report_format(report_path)
+        except ParameterError as exc:
+            raise click.BadParameter(str(exc), param_hint="-o/--output") from None
+    _check_output(report_path, "-o/--output")
+    _check_output(observed_path, "--observed")
+    if scheduler is not None:
+        from rockscan.run.backends import check_scheduler_address
+
+        try:
+            check_scheduler_address(scheduler)
+        except ParameterError as exc:
+            raise click.BadParameter(str(exc), param_hint="--scheduler") from None
 
 
 def _interrupt(signum: int, frame: Any) -> None:

@@ -144,8 +144,10 @@ class ShapeSpec:
             isinstance(self.interest, (int, float)) and np.isfinite(self.interest) and self.interest >= 0
         ):
             raise SpecError(f"shape {self.name!r}: interest must be a non-negative number")
-        if (self.params is None) == (not self.images):
+        if self.params is not None and self.images:
             raise SpecError(f"shape {self.name!r}: give either Superformula parameters or images, not both")
+        if self.params is None and not self.images:
+            raise SpecError(f"shape {self.name!r}: give Superformula parameters or example images")
 
 
 @dataclass(frozen=True, eq=False)

@@ -36,6 +36,14 @@ __all__ = [
 MAX_RENDER_PIXELS = 16_000_000
 
 
+#: Most pebbles a photo may scatter, the longest drawn outline, the largest texture,
+#: noise or outline-noise amplitude (brightness runs 0 to 1) and the widest blur (pixels).
+MAX_PEBBLES = 10_000
+MAX_OUTLINE_POINTS = 1_000_000
+MAX_AMPLITUDE = 100.0
+MAX_BLUR = 100.0
+
+
 @dataclass(frozen=True)
 class RenderConfig:
     """How a synthetic rock photo looks.
@@ -112,8 +120,13 @@ class RenderConfig:
                 f"a photo of {self.rows} x {self.cols} pixels is over the {MAX_RENDER_PIXELS:,} "
                 "rockscan draws (e.g. 4000 x 4000)"
             )
-        if self.pebbles < 0:
-            raise ParameterError("pebbles must be 0 or more")
+        if not 0 <= self.pebbles <= MAX_PEBBLES:
+            # Each is drawn on its own: a million took a quarter of a minute a photo.
+            raise ParameterError(f"pebbles must be from 0 to {MAX_PEBBLES:,}, got {self.pebbles}")
+        if self.outline_points > MAX_OUTLINE_POINTS:
+            raise ParameterError(
+                f"outline_points must be at most {MAX_OUTLINE_POINTS:,}, got {self.outline_points}"
+            )
         for name in (
             "area_fraction",
             "contrast",
@@ -136,6 +149,12 @@ class RenderConfig:
             )
         if self.shadow > 1 or self.gradient >= 2:
             raise ParameterError("shadow must be at most 1 and gradient below 2")
+        for name in ("rock_texture", "ground_texture", "noise", "outline_noise"):
+            # Brightness runs 0 to 1; far past it the drawing overflows its floats.
+            if getattr(self, name) > MAX_AMPLITUDE:
+                raise ParameterError(f"{name} must be at most {MAX_AMPLITUDE:g}, got {getattr(self, name)!r}")
+        if self.blur > MAX_BLUR:
+            raise ParameterError(f"blur must be at most {MAX_BLUR:g} pixels, got {self.blur!r}")
         if self.contrast > 1:
             # Brightness runs 0 to 1: a larger difference would only clip the rock to white or black.
             raise ParameterError(

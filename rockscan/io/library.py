@@ -21,7 +21,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from rockscan._version import __version__
-from rockscan.core.errors import LibraryError, ParameterError
+from rockscan.core.errors import LibraryError, ParameterError, WriteError
 from rockscan.core.superformula import SuperformulaParams
 from rockscan.io._npzsafe import SafeNpz
 
@@ -93,8 +93,19 @@ def save_library(library: Library, path: str | os.PathLike[str]) -> None:
         **cutoff_arrays,
         **sensor_arrays,
     }
+    # Refused here rather than written and then refused by load_library.
+    size = sum(np.asarray(a).nbytes + _NPY_HEADER for a in arrays.values())
+    if size > (budget := _budget(metadata)):
+        raise WriteError(
+            f"{path}: the library would take {size:,} bytes, past the {budget:,} a library file may hold "
+            "(fewer rays, coarser sections or fewer shapes)"
+        )
     with atomic_file(path, what="library") as fh:
         np.savez(fh, **arrays)
+
+
+#: Bytes of an ``.npy`` member's header, at most (numpy writes 128).
+_NPY_HEADER = 128
 
 
 def _params_dict(params: SuperformulaParams | None) -> dict[str, float] | None:

@@ -145,7 +145,9 @@ def parse_spec(data: dict[str, object], *, base: Path | None = None, source: str
             )
             shape = ShapeSpec(name=name, params=params, interest=entry.get("interest", 1.0), images=paths)
         except (ParameterError, SpecError) as exc:
-            raise SpecError(f"{_where(source, name, i)}: {exc}") from None
+            # The shape's own checks name it too: say it once.
+            reason = str(exc).removeprefix(f"shape {name!r}: ")
+            raise SpecError(f"{_where(source, name, i)}: {reason}") from None
         seen.add(shape.name)
         out.append(shape)
     return out

@@ -138,7 +138,7 @@ class _ProcessBackend:
 _DASK_SCHEMES = ("tcp", "tls", "ws", "wss", "ucx")
 
 
-def _check_scheduler_address(address: str) -> None:
+def check_scheduler_address(address: str) -> None:
     """Refuse an address that cannot work before any connection is tried
     (distributed would fail late, and leave a half-made client behind)."""
     scheme, sep, rest = address.partition("://")
@@ -161,6 +161,11 @@ def _check_scheduler_address(address: str) -> None:
         )
     if not rest or rest.startswith(":"):
         raise ParameterError(f"--scheduler {address}: no host in the address; {hint}")
+    host, colon, port = rest.rstrip("/").rpartition(":")
+    if scheme in ("tcp", "tls") and not (colon and host and port.isdigit() and 0 < int(port) < 65536):
+        # distributed says so only after a client is half made, whose
+        # clean-up then waits out its timeout (a minute) as the command ends.
+        raise ParameterError(f"--scheduler {address}: no port in the address; {hint}")
     if scheme in ("tls", "wss"):
         from distributed.security import Security
 
@@ -192,7 +197,7 @@ class _DaskBackend:
             from distributed import Client
         except ImportError:
             raise ParameterError("--scheduler needs dask.distributed: pip install 'rockscan[dask]'") from None
-        _check_scheduler_address(address)
+        check_scheduler_address(address)
         self.address = address
         # distributed logs a traceback for every failed reconnection: the run says it once.
         self._quiet = _QuietLogger("distributed")
