@@ -456,3 +456,25 @@ def test_an_archive_saved_compressed_still_loads(tmp_path, default_specs):
     _zipped(tmp_path / "deflated.npz", _members(good), zipfile.ZIP_DEFLATED)
     again = load_library(tmp_path / "deflated.npz")
     np.testing.assert_array_equal(again.basis.components, load_library(good).basis.components)
+
+
+@pytest.mark.parametrize(
+    ("array", "change", "message"),
+    [
+        # Loaded, saved again, and reported as a match's symmetry of -5.
+        ("symmetry", lambda a: a - 10, "symmetry must be whole orders"),
+        ("symmetry", lambda a: a.astype(np.float64) + 0.5, "symmetry must be whole orders"),
+        ("eigenvalues", lambda a: np.where(np.arange(a.size) == 0, np.nan, a), "eigenvalues must be finite"),
+        ("radii", lambda a: -a, "must be non-negative"),
+        ("interest", lambda a: a - 5, "must be non-negative"),
+    ],
+)
+def test_a_library_whose_arrays_were_tampered_with_is_refused(
+    tmp_path, default_specs, array, change, message
+):
+    path = tmp_path / "tampered.npz"
+    _rewrite(
+        _saved(tmp_path, default_specs), path, lambda arrays: arrays.update({array: change(arrays[array])})
+    )
+    error, _ = _load_quietly(path)
+    assert message in str(error)

@@ -202,6 +202,19 @@ class Library:
         for name, value in (("radii", radii), ("interest", self.interest)):
             if not np.all(np.isfinite(value)):
                 raise LibraryError(f"library {name} must be finite")
+        if np.any(radii < 0) or np.any(np.asarray(self.interest) < 0):
+            raise LibraryError("library radii and interest must be non-negative")
+        symmetry = np.asarray(self.symmetry)
+        if (
+            symmetry.dtype.kind not in "iu"
+            or np.any(symmetry < 0)
+            or np.any(symmetry > self.face_config.n_angles)
+        ):
+            # The order of a turn that maps a shape onto itself: a count of rays.
+            rays = self.face_config.n_angles
+            raise LibraryError(f"library symmetry must be whole orders from 0 to {rays}")
+        if not np.all(np.isfinite(self.basis.eigenvalues)):
+            raise LibraryError("library eigenvalues must be finite")
         if self.calibration is not None and self.calibration.cutoffs.shape != (n,):
             raise LibraryError("library cutoffs must be one per shape")
         radii.setflags(write=False)
