@@ -348,6 +348,12 @@ def test_family_varies_by_factors_and_names_each_variant():
         assert (v.params.m1, v.params.n2, v.params.n3) == (1.0, 0.75, 0.75)
 
 
+def test_family_refuses_a_name_it_cannot_vary():
+    # A KeyError escaped for a name parse_vary never makes (the API takes any pairs).
+    with pytest.raises(SpecError, match="cannot vary 'zz'"):
+        family(ShapeSpec("egg", EGG), [("zz", [1.2])])
+
+
 def test_family_groups_absolute_values_and_products():
     variants = family(BASE, [("m", (2.0, 3.0)), ("n23", (1.0, 2.0))], absolute=True)
     assert [v.name for v in variants] == [

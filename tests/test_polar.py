@@ -115,6 +115,19 @@ def test_recenter_moves_the_origin_to_the_area_centroid():
     np.testing.assert_allclose(again, star, rtol=1e-9)
 
 
+@pytest.mark.parametrize("angle", [np.nan, np.inf, "ten", True])
+def test_a_turn_that_is_no_finite_number_is_refused(angle):
+    radii = shape_radii(SuperformulaParams(3, 3, 2, 2, 2), 360)
+    with pytest.raises(ParameterError, match="angle_deg must be a finite number"):
+        rotate_radii(radii, angle)
+
+
+def test_a_turn_and_the_same_turn_plus_whole_turns_agree():
+    radii = shape_radii(SuperformulaParams(5, 5, 2, 7, 7), 360)
+    np.testing.assert_allclose(rotate_radii(radii, -10.25), rotate_radii(radii, 349.75), atol=1e-12)
+    np.testing.assert_allclose(rotate_radii(radii, 720.5 + 1e6 * 360), rotate_radii(radii, 0.5), atol=1e-9)
+
+
 @given(shift=st.integers(-720, 720))
 def test_rotate_by_whole_steps_is_a_shift(shift):
     radii = shape_radii(SuperformulaParams(5, 5, 2, 7, 7), 360)

@@ -141,6 +141,8 @@ def family(
     if not vary:
         raise SpecError("vary at least one parameter (e.g. n1=0.8:1.2:5)")
     names = [name for name, _ in vary]
+    if unknown := [name for name in names if name not in VARY_NAMES]:
+        raise SpecError(f"cannot vary {', '.join(map(repr, unknown))}; vary {', '.join(VARY_NAMES)}")
     touched = [p for name in names for p in VARY_NAMES[name]]
     if not one_at_a_time and len(set(touched)) != len(touched):
         raise SpecError(f"a parameter is varied twice in {', '.join(names)}; vary it once")

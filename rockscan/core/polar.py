@@ -331,8 +331,14 @@ def rotate_radii(radii: ArrayLike, angle_deg: float) -> NDArray[np.float64]:
         circular shift for whole multiples of the ray step.
     """
     radii = np.asarray(radii, dtype=np.float64)
+    if (
+        isinstance(angle_deg, bool)
+        or not isinstance(angle_deg, (int, float, np.number))
+        or not np.isfinite(angle_deg)
+    ):
+        raise ParameterError(f"angle_deg must be a finite number, got {angle_deg!r}")
     n = radii.size
-    shift = angle_deg / 360.0 * n
+    shift = float(angle_deg) % 360.0 / 360.0 * n
     if abs(shift - round(shift)) < 1e-9:
         return np.roll(radii, int(np.round(shift)))
     spectrum = np.fft.rfft(radii)
