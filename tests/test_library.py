@@ -100,3 +100,13 @@ def test_library_lookup_and_immutability(paper_lib):
         paper_lib.index("moon")
     with pytest.raises(ValueError, match="read-only"):
         paper_lib.radii[0, 0] = 2.0
+
+
+def test_a_shape_given_twice_is_refused_and_a_close_variant_is_not():
+    # Two copies left no cutoff that takes a sample to either of them.
+    egg = shape_radii(SuperformulaParams(1, 1, 0.75, 0.75, 0.75), 360)
+    star = shape_radii(SuperformulaParams(5, 5, 2, 7, 7), 360)
+    with pytest.raises(LibraryError, match="shapes a, b have one outline"):
+        Library.from_radii(["a", "b", "c"], np.stack([egg, egg * 3.0, star]))
+    close = shape_radii(SuperformulaParams(1, 1, 0.75 * 1.01, 0.75, 0.75), 360)
+    assert len(Library.from_radii(["a", "b", "c"], np.stack([egg, close, star]))) == 3
