@@ -105,11 +105,11 @@ def library_build(
 ) -> None:
     """Build a library file from a spec (TOML with [[shape]] tables), with cutoffs calibrated for it."""
     from rockscan.core.errors import SpecError
-
-    _check_output(output, "--output", suffixes=(".npz",), inputs=(spec,))
     from rockscan.core.information import FaceConfig
     from rockscan.io import read_spec, save_library
     from rockscan.run.pipeline import library_from_spec
+
+    _check_output(output, "--output", suffixes=(".npz",), inputs=(spec,))
 
     shapes = read_spec(spec)
     ref_params = None

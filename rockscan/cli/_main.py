@@ -95,12 +95,11 @@ class Number(click.ParamType):
         return number
 
     def _range(self) -> str:
-        low = "<" if self.low_open else "<="
         if self.high is None:
             return f"x {'>' if self.low_open else '>='} {self.low:g}"
         if self.low is None:
             return f"x <= {self.high:g}"
-        return f"{self.low:g} {low} x <= {self.high:g}"
+        return f"{self.low:g} {'<' if self.low_open else '<='} x <= {self.high:g}"
 
 
 def config_option(

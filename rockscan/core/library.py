@@ -305,12 +305,6 @@ class Library:
                     metric, calibration = cutoffs.result()
         except ParameterError as exc:
             raise LibraryError(str(exc)) from None
-        if calibration is not None and (same := np.flatnonzero(calibration.spacing < _SAME_SHAPE)).size:
-            # Two shapes no turn tells apart: no cutoff can take a sample to one of them.
-            raise LibraryError(
-                f"shapes {', '.join(names[i] for i in same)} have one outline (up to a turn); "
-                "give each shape once"
-            )
         library = cls(
             names=names,
             radii=radii,
@@ -321,6 +315,12 @@ class Library:
             basis=basis,
             calibration=calibration,
         )
+        if calibration is not None and (same := np.flatnonzero(calibration.spacing < _SAME_SHAPE)).size:
+            # Two shapes no turn tells apart: no cutoff can take a sample to one of them.
+            raise LibraryError(
+                f"shapes {', '.join(names[i] for i in same)} have one outline (up to a turn); "
+                "give each shape once"
+            )
         if metric is not None:
             object.__setattr__(library, "sensor_metric", metric)
         return library
