@@ -12,6 +12,7 @@ import click
 
 from rockscan.cli._main import (
     Number,
+    _check_output,
     _errors,
     _library_option,
     _load_library,
@@ -235,9 +236,7 @@ def _plot_targets(plot_path: str, photos: tuple[str, ...], *, overwrite: bool) -
     Refuses (a usage error) when a plot would replace a file, unless ``overwrite``:
     a folder never holds plots of two runs without the user asking for it.
     """
-    folder = os.path.dirname(os.path.abspath(plot_path))
-    if not os.path.isdir(folder):
-        raise click.BadParameter(f"folder {folder!r} does not exist", param_hint="--plot")
+    _check_output(plot_path, "--plot")  # its folder; the plots' own names are checked below
     if len(photos) == 1:
         targets = {0: plot_path}
     else:
