@@ -297,3 +297,23 @@ def test_small_photos_have_a_ground_of_the_set_brightness(size):
     )
     border = np.concatenate([photo.pixels[0], photo.pixels[-1]]).astype(float) / 255
     assert 0.2 < np.median(border) < 0.7
+
+
+@pytest.mark.parametrize("center", [(10.0, 100.0), (250.0, 5.0)])
+def test_a_rock_partly_outside_the_frame_gets_the_truth_the_photo_shows(center):
+    """Area and centroid are those of the part inside the frame, and the truth says it is clipped."""
+    egg = SuperformulaParams(1, 1, 1, 1, 1, 0.5, 1)
+    photo = render_photo(egg, CLEAN.with_(area_fraction=0.1, angle_deg=30.0, center_xy=center), rng=0)
+    cover = coverage(photo.pixels)
+    rows, cols = np.indices(cover.shape)
+    assert photo.truth["clipped"] is True
+    assert photo.truth["area_px"] == pytest.approx(cover.sum(), rel=1e-3)
+    seen = [(cover * cols).sum() / cover.sum(), (cover * rows).sum() / cover.sum()]
+    assert photo.truth["centroid_xy"] == pytest.approx(seen, abs=0.05)
+
+
+def test_a_rock_inside_the_frame_is_not_clipped_and_one_outside_is_refused():
+    inside = render_photo(STAR, CLEAN.with_(area_fraction=0.1, center_xy=(130.0, 100.0)), rng=0)
+    assert inside.truth["clipped"] is False
+    with pytest.raises(ParameterError, match="outside the frame"):
+        render_photo(STAR, CLEAN.with_(center_xy=(-500.0, 100.0)), rng=0)

@@ -58,7 +58,8 @@ class RenderConfig:
         Rotation of the rock, counter-clockwise; None draws it uniformly.
     center_xy : (float, float) or None
         Where the shape's origin lies, (x=col, y=row); None places the rock at
-        random, wholly inside the frame.
+        random, wholly inside the frame. A rock placed partly outside is
+        drawn clipped (its truth says so); one wholly outside is refused.
     rock_lighter : bool or None
         Rock lighter than the ground; None draws it.
     contrast : float
@@ -204,9 +205,11 @@ class RenderedPhoto:
         ``angle_deg`` (counter-clockwise, the interface's convention),
         ``scale_px`` (mean radius of the outline about its origin, pixels),
         ``center_xy`` (the shape's origin), ``centroid_xy`` (the rock's area
-        centroid, (col, row)), ``area_px``, ``area_fraction``,
-        ``rock_lighter`` and ``symmetry`` (order of rotational symmetry of the
-        noise-free outline; 0 for a circle). :func:`render_photo` puts the
+        centroid, (col, row)), ``area_px``, ``area_fraction``, ``clipped``
+        (part of the rock lies outside the frame; area and centroid are then
+        those of the part inside), ``rock_lighter`` and ``symmetry`` (order
+        of rotational symmetry of the noise-free outline; 0 for a circle).
+        :func:`render_photo` puts the
         rock's keys at the top level; both functions list the rocks under
         ``rocks`` and every render setting under ``render``.
     """
@@ -497,9 +500,22 @@ class _Scene:
         else:
             cx, cy = map(float, center_xy)
             mask = _polygon_mask(cx + x, cy - y, cfg.rows, cfg.cols)
+        area = float(mask.sum())
+        if area < 1.0:
+            raise ParameterError(f"a rock centred at {center_xy} lies outside the frame; place it inside")
         self.coverage = np.maximum(self.coverage, mask)
         self.taken |= mask > 0.01
-        centroid = polygon_centroid_xy(np.column_stack([x, y]))
+        # Pixel j covers [j - 0.5, j + 0.5), so the frame spans -0.5 to size - 0.5.
+        low, high = min(cx + x.min(), cy - y.max()), max(cx + x.max() - cfg.cols, cy - y.min() - cfg.rows)
+        clipped = bool(low < -0.5 or high > -0.5)
+        if clipped:
+            # The truth is what the photo shows: a segmenter can only find the
+            # part inside the frame, so its centroid is that part's.
+            rows_at, cols_at = np.indices(mask.shape)
+            centre = (float((mask * cols_at).sum()) / area, float((mask * rows_at).sum()) / area)
+        else:
+            centroid = polygon_centroid_xy(np.column_stack([x, y]))
+            centre = (cx + float(centroid[0]), cy - float(centroid[1]))
         mean_radius = float(np.mean(scale * radii))
         return {
             "shape": name,
@@ -507,9 +523,10 @@ class _Scene:
             "angle_deg": angle % 360.0,
             "scale_px": mean_radius,
             "center_xy": [cx, cy],
-            "centroid_xy": [cx + float(centroid[0]), cy - float(centroid[1])],
-            "area_px": float(mask.sum()),
-            "area_fraction": float(mask.sum()) / (cfg.rows * cfg.cols),
+            "centroid_xy": list(centre),
+            "area_px": area,
+            "area_fraction": area / (cfg.rows * cfg.cols),
+            "clipped": clipped,
             "rock_lighter": self.lighter,
             "symmetry": symmetry,
         }
