@@ -425,3 +425,9 @@ def test_plot_fits_draws_outline_and_fit(tmp_path):
     for panel in (slice(0, half), slice(half, None)):
         assert red[:, panel].sum() > 200
         assert dark[:, panel].sum() > 200
+
+
+def test_family_names_keep_the_sign_and_exponent_of_their_values():
+    # Sanitising once turned 1e+308 into "1e-308" and -1 into "1", the opposite of the values.
+    variants = family(BASE, [("n2", (-1.0, 1e-5, 1e300))], absolute=True)
+    assert [v.name for v in variants] == ["egg-n2-m1", "egg-n2-1e-05", "egg-n2-1e300"]

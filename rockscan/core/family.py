@@ -167,7 +167,7 @@ def family(
                 values[key] = v if absolute else round_significant(base_values[key] * v, 12)
         if values == base_values:
             continue
-        label = "-".join(f"{name}-{v:g}" for name, v in combo)
+        label = "-".join(f"{name}-{_value_label(v)}" for name, v in combo)
         variant_name = sanitize_name(f"{base.name}-{label}")
         if variant_name in seen:
             raise SpecError(
@@ -182,3 +182,12 @@ def family(
             raise SpecError(f"variant {variant_name!r}: {exc}; narrow the --vary range") from None
         variants.append(ShapeSpec(variant_name, params, interest=base.interest))
     return variants
+
+
+def _value_label(value: float) -> str:
+    """A value as it reads in a variant's name: ``0.9`` -> ``0.9`` (sanitised to
+    ``0-9``), ``1e+308`` -> ``1e308`` and ``-2`` -> ``m2``, so that sanitising
+    the name turns neither a sign nor an exponent into a dash that reads as
+    the opposite sign."""
+    text = f"{value:g}".replace("e+", "e")
+    return "m" + text[1:] if text.startswith("-") else text
