@@ -136,3 +136,28 @@ def test_a_library_past_what_a_file_may_hold_is_refused_before_it_is_written(tmp
     with pytest.raises(WriteError, match="a library file may hold"):
         save_library(default_library(), target)
     assert not target.exists()
+
+
+@pytest.mark.parametrize(
+    "args",
+    [
+        ["classify", "{photo}", "--plot", ""],
+        ["classify", ""],
+        ["classify", "-l", "", "{photo}"],
+        ["triage", ""],
+        ["render", "-o", "", "-n", "1"],
+        ["examples", ""],
+        ["match", "--radii", ""],
+        ["library", "build", "", "-o", "{tmp}/lib.npz"],
+        ["library", "fit", "{photo}", "-o", ""],
+        ["library", "family", "{spec}", "egg", "--vary", "n1=1.1", "-o", ""],
+    ],
+)
+def test_an_empty_path_is_a_usage_error(runner, photo, spec, tmp_path, monkeypatch, args):
+    # The operating system reads "" as the current folder: triage walked it, and
+    # classify --plot "" drew nothing and exited 0.
+    monkeypatch.chdir(tmp_path)
+    args = [a.format(photo=photo, spec=spec, tmp=tmp_path) for a in args]
+    before = sorted(p.name for p in tmp_path.iterdir())
+    assert refused(runner.invoke(main, args), "an empty name")
+    assert sorted(p.name for p in tmp_path.iterdir()) == before

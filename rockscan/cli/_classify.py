@@ -12,6 +12,7 @@ import click
 
 from rockscan.cli._main import (
     Number,
+    PathName,
     _check_output,
     _errors,
     _library_option,
@@ -35,7 +36,7 @@ from rockscan.cli._main import (
 @click.option(
     "--radii",
     "radii_path",
-    type=click.Path(dir_okay=False),
+    type=PathName(dir_okay=False),
     default=None,
     help="Radii file: numbers at equal angles from theta=0 (text or .npy).",
 )
@@ -103,7 +104,7 @@ def match_cmd(
 
 
 @main.command("classify")
-@click.argument("photos", nargs=-1, required=True, type=click.Path(), metavar="PHOTO...")
+@click.argument("photos", nargs=-1, required=True, type=PathName(), metavar="PHOTO...")
 @_library_option
 @_match_options
 @_px_per_mm_option
@@ -116,7 +117,7 @@ def match_cmd(
 @click.option(
     "--plot",
     "plot_path",
-    type=click.Path(dir_okay=False),
+    type=PathName(dir_okay=False),
     default=None,
     help="Draw each photo with outline, centroid, matched shape, information face and distances "
     "(PNG). With several photos, the photo's name is added to the file name.",
@@ -148,7 +149,7 @@ def classify(
     from rockscan.run.pipeline import ClassifyConfig, classify_path
 
     photos = _expand_stdin(photos)
-    targets = _plot_targets(plot_path, photos, overwrite=overwrite) if plot_path else {}
+    targets = _plot_targets(plot_path, photos, overwrite=overwrite) if plot_path is not None else {}
     lib = _load_library(library_path)
     config = ClassifyConfig(match=match_config, px_per_mm=px_per_mm)
     failed = 0

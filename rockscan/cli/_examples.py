@@ -7,14 +7,14 @@ import shutil
 
 import click
 
-from rockscan.cli._main import _errors, log, main
+from rockscan.cli._main import PathName, _errors, log, main
 
 #: Photo file endings among the examples (the rest are their truth and notes).
 _PHOTO_ENDINGS = (".png", ".jpg", ".jpeg", ".tif", ".tiff", ".bmp")
 
 
 @main.command("examples")
-@click.argument("folder", type=click.Path(file_okay=False))
+@click.argument("folder", type=PathName(file_okay=False))
 @click.option("--overwrite", is_flag=True, help="Replace files of the same names in FOLDER.")
 @_errors
 def examples_cmd(folder: str, overwrite: bool) -> None:

@@ -11,7 +11,7 @@ from typing import Any
 import click
 
 from rockscan.cli._library import library
-from rockscan.cli._main import _check_output, _errors
+from rockscan.cli._main import PathName, _check_output, _errors
 
 #: Rays an outline is measured at (the library's default).
 _N_ANGLES = 360
@@ -21,11 +21,11 @@ _N_ANGLES = 360
 
 
 @library.command("fit")
-@click.argument("inputs", metavar="PHOTO...", nargs=-1, required=True, type=click.Path())
+@click.argument("inputs", metavar="PHOTO...", nargs=-1, required=True, type=PathName())
 @click.option(
     "-o",
     "--output",
-    type=click.Path(dir_okay=False),
+    type=PathName(dir_okay=False),
     default=None,
     help="Spec (.toml) to write the fitted shapes to. Default: print the spec on standard output "
     "and the report on standard error.",
@@ -34,7 +34,7 @@ _N_ANGLES = 360
 @click.option(
     "--plot",
     "plot_path",
-    type=click.Path(dir_okay=False),
+    type=PathName(dir_okay=False),
     default=None,
     help="Draw each outline with its fitted curve overlaid (PNG).",
 )
@@ -152,7 +152,7 @@ def _outline_radii(path: str) -> Any:
 
 
 @library.command("family")
-@click.argument("spec", type=click.Path(dir_okay=False))
+@click.argument("spec", type=PathName(dir_okay=False))
 @click.argument("name")
 @click.option(
     "--vary",
@@ -174,7 +174,7 @@ def _outline_radii(path: str) -> Any:
 @click.option(
     "-o",
     "--output",
-    type=click.Path(dir_okay=False),
+    type=PathName(dir_okay=False),
     default=None,
     help="Spec (.toml) to write. Default: standard output.",
 )

@@ -10,6 +10,7 @@ import click
 from rockscan.cli._main import (
     DEFAULT_LIBRARY_NAME,
     Number,
+    PathName,
     _check_output,
     _errors,
     _load_library,
@@ -31,9 +32,9 @@ def library() -> None:
 
 
 @library.command("build")
-@click.argument("spec", type=click.Path(dir_okay=False))
+@click.argument("spec", type=PathName(dir_okay=False))
 @click.option(
-    "-o", "--output", required=True, type=click.Path(dir_okay=False), help="Library file to write (.npz)."
+    "-o", "--output", required=True, type=PathName(dir_okay=False), help="Library file to write (.npz)."
 )
 @config_option(
     "--face",
@@ -134,10 +135,11 @@ def library_build(
 
 
 @library.command("show")
-@click.argument("lib", type=click.Path(dir_okay=False), default=DEFAULT_LIBRARY_NAME)
+@click.argument("lib", type=PathName(dir_okay=False), default=DEFAULT_LIBRARY_NAME)
 @click.option(
     "--plot",
     "plot_path",
+    # click.Path: the flag alone passes "" through the type, meaning LIBNAME.png.
     type=click.Path(dir_okay=False),
     is_flag=False,
     flag_value="",

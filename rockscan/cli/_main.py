@@ -63,6 +63,20 @@ class ConfigOption(click.Option):
         return self.convert(*values) if self.convert else values[0]
 
 
+class PathName(click.Path):
+    """A path, where an empty name is a usage error.
+
+    ``click.Path`` takes ``""``, which the operating system reads as the
+    current folder: ``triage ""`` would walk it and ``classify --plot ""``
+    drew nothing and exited 0.
+    """
+
+    def convert(self, value: Any, param: click.Parameter | None, ctx: click.Context | None) -> Any:
+        if isinstance(value, str) and not value.strip():
+            self.fail("an empty name; give a path.", param, ctx)
+        return super().convert(value, param, ctx)
+
+
 class Number(click.ParamType):
     """A number within optional bounds; nan, and unless ``infinite`` also inf, is a
     usage error (exit status 2), as a word where a number belongs is.
@@ -173,7 +187,7 @@ def _library_option(func: Callable[..., Any]) -> Callable[..., Any]:
         "--library",
         "-l",
         "library_path",
-        type=click.Path(dir_okay=False),
+        type=PathName(dir_okay=False),
         default=None,
         help=f"Library file (.npz from 'rockscan library build') or spec (.toml); "
         f"'{DEFAULT_LIBRARY_NAME}' (the default) is the built-in library.",

@@ -9,7 +9,7 @@ from typing import TYPE_CHECKING
 
 import click
 
-from rockscan.cli._main import _errors, _progress, config_option, log, main
+from rockscan.cli._main import PathName, _errors, _progress, config_option, log, main
 from rockscan.core.choices import RENDER_POLARITIES
 
 if TYPE_CHECKING:
@@ -20,13 +20,13 @@ RENDER = "rockscan.core.render.RenderConfig"
 
 
 @main.command("render")
-@click.argument("spec", type=click.Path(dir_okay=False), required=False)
+@click.argument("spec", type=PathName(dir_okay=False), required=False)
 @click.option(
     "-o",
     "--output",
     "out_dir",
     required=True,
-    type=click.Path(file_okay=False),
+    type=PathName(file_okay=False),
     help="Folder to write photos and their truth (.json) into.",
 )
 @click.option(
@@ -95,7 +95,12 @@ RENDER = "rockscan.core.render.RenderConfig"
 @config_option("--noise", type=float, config=RENDER, field="noise", help="Pixel noise standard deviation.")
 @config_option("--blur", type=float, config=RENDER, field="blur", help="Gaussian blur sigma, pixels.")
 @click.option(
-    "--jpeg", "jpeg_quality", type=int, default=None, help="Write JPEG at this quality (default: PNG)."
+    "--jpeg",
+    "jpeg_quality",
+    type=int,
+    default=None,
+    help="Compress at this JPEG quality: written as .jpg, or its artefacts kept losslessly with "
+    "--format png/tif/bmp (default: no compression, PNG).",
 )
 @config_option(
     "--outline-noise",

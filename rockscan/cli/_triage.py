@@ -14,6 +14,7 @@ import click
 
 from rockscan.cli._main import (
     Number,
+    PathName,
     _check_output,
     _errors,
     _fail,
@@ -27,12 +28,12 @@ from rockscan.core.choices import NOVELTY_METRICS
 
 
 @main.command("triage")
-@click.argument("folder", type=click.Path())
+@click.argument("folder", type=PathName())
 @click.option(
     "-o",
     "--output",
     "report_path",
-    type=click.Path(dir_okay=False),
+    type=PathName(dir_okay=False),
     default=None,
     help="Report: .csv, .jsonl (JSON lines), .html (contact sheet) or .geojson (rock outlines), "
     "by its ending. Default: the ranked JSON lines on standard output.",
@@ -57,7 +58,7 @@ from rockscan.core.choices import NOVELTY_METRICS
 @click.option(
     "--observed",
     "observed_path",
-    type=click.Path(dir_okay=False),
+    type=PathName(dir_okay=False),
     default=None,
     help="Observed library (.npz) for novelty: created from the library if missing, "
     "grown by every novel rock, kept between runs.",
