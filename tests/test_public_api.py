@@ -48,3 +48,32 @@ def test_stage_modules_are_reachable_and_their_functions_too():
     # Importing a stage does not shadow the public names.
     importlib.import_module("rockscan.run.pipeline")
     assert not inspect.ismodule(rockscan.classify_image)
+
+
+@pytest.mark.parametrize(
+    "call",
+    [
+        lambda photo, out: rockscan.classify_path(photo, "default"),
+        lambda photo, out: rockscan.classify_image(rockscan.read_image(photo).pixels, "default"),
+        lambda photo, out: rockscan.match_radii([1.0] * 360, "default"),
+        lambda photo, out: rockscan.rotation_scores([1.0] * 360, None),
+        lambda photo, out: rockscan.save_library("default", out / "lib.npz"),
+        lambda photo, out: rockscan.triage_folder(photo.parent, out / "r.jsonl", "default"),
+    ],
+)
+def test_a_library_name_where_a_library_goes_is_a_type_error_that_says_how(call, tmp_path):
+    # The command line takes "default"; the functions take the library, and a name
+    # failed deep inside with an AttributeError on a string.
+    photo = tmp_path / "photos" / "star.png"
+    photo.parent.mkdir()
+    photo.write_bytes(rockscan.render_photo(rockscan.SuperformulaParams(5, 5, 2, 7, 7), rng=0).encode(".png"))
+    with pytest.raises(TypeError, match=r"library must be a Library \(rockscan.default_library\(\)"):
+        call(photo, tmp_path)
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["photos"]
+
+
+def test_a_shape_name_where_a_shape_goes_is_a_type_error():
+    with pytest.raises(TypeError, match="not the name 'tri'; read_spec"):
+        rockscan.render_photo("tri")
+    with pytest.raises(rockscan.ParameterError, match="radii must be numbers"):
+        rockscan.render_photo([1.0, "a"] * 8)

@@ -400,7 +400,7 @@ def rotation_scores(radii: ArrayLike, library: Library, *, metric: str = "eigens
         Row a: the sample turned back by ``a * 360/n_angles`` degrees, i.e. the
         distance to each shape turned by that angle (interface convention).
     """
-    config = library.face_config
+    config = require_library(library).face_config
     radii = _check_sample(radii, config.n_angles)
     return _scan(radii, library, (_check_metric(metric),), scan=True)[metric]
 
@@ -467,7 +467,7 @@ def match_radii(radii: ArrayLike, library: Library, config: MatchConfig | None =
     through the squared distances at that rotation and its two neighbours.
     """
     config = config or MatchConfig()
-    face_config = library.face_config
+    face_config = require_library(library).face_config
     radii = _check_sample(radii, face_config.n_angles)
     metric = config.resolved_metric(library)
     # With the sensor distance ranking, w stays the paper's outWeights (for MScore).
@@ -708,3 +708,19 @@ def _check_sample(radii: ArrayLike, n_angles: int) -> NDArray[np.float64]:
     if not np.all(np.isfinite(radii)) or np.any(radii < 0) or radii.max() <= 0:
         raise ParameterError("sample radii must be finite, non-negative and not all zero")
     return radii
+
+
+def require_library(value: Library) -> Library:
+    """``value`` if it is a library, else a ``TypeError`` that says how to get one.
+
+    The command line takes ``default`` or a file name where a library goes; the
+    functions take the library itself, and a name given there failed deep inside
+    with an ``AttributeError`` on a string. (Checked by its face settings, not
+    its class: :mod:`rockscan.core.library` builds on this module.)
+    """
+    if not hasattr(value, "face_config") or not hasattr(value, "names"):
+        raise TypeError(
+            "library must be a Library (rockscan.default_library() or rockscan.load_library(path)), "
+            f"not {type(value).__name__}"
+        )
+    return value

@@ -450,15 +450,7 @@ class _Scene:
         cfg, rng = self.config, self.rng
         n_points = cfg.outline_points if cfg.outline_noise > 0 else max(cfg.outline_points, 2048)
         theta = polar_angles(n_points)
-        if isinstance(shape, SuperformulaParams):
-            radii = shape.radii(theta)
-            params: dict[str, float] | None = shape.as_dict()
-        else:
-            given = np.asarray(shape, dtype=np.float64)
-            if given.ndim != 1 or given.size < 8:
-                raise ParameterError("shape radii must be a 1-D array of at least 8 values")
-            radii = resample_radii(given, n_points)
-            params = None
+        radii, params = _outline_radii(shape, n_points)
         if np.any(degenerate_rays(radii)):
             raise ParameterError(
                 "the shape's outline is unbounded or degenerate; choose parameters whose curve is closed"
@@ -610,6 +602,26 @@ class _Scene:
         matrix = np.float32([[1, 0, shift[0]], [0, 1, shift[1]]])
         moved = cv2.warpAffine(self.coverage, matrix, (self.config.cols, self.config.rows))
         return cv2.GaussianBlur(moved, (0, 0), max(1.0, 0.12 * radius))
+
+
+def _outline_radii(
+    shape: SuperformulaParams | ArrayLike, n_points: int
+) -> tuple[NDArray[np.float64], dict[str, float] | None]:
+    """The shape's radii at ``n_points`` equal angles, and its parameters (None for radii)."""
+    if isinstance(shape, SuperformulaParams):
+        return shape.radii(polar_angles(n_points)), shape.as_dict()
+    if isinstance(shape, (str, bytes)):
+        raise TypeError(
+            f"shape must be SuperformulaParams or radii, not the name {shape!r}; "
+            "read_spec(path) gives a spec's shapes"
+        )
+    try:
+        given = np.asarray(shape, dtype=np.float64)
+    except (TypeError, ValueError):
+        raise ParameterError("shape radii must be numbers") from None
+    if given.ndim != 1 or given.size < 8:
+        raise ParameterError("shape radii must be a 1-D array of at least 8 values")
+    return resample_radii(given, n_points), None
 
 
 def _polygon_mask(

@@ -62,7 +62,12 @@ def save_library(library: Library, path: str | os.PathLike[str]) -> None:
     ------
     WriteError
         If the file cannot be written.
+    TypeError
+        If ``library`` is not a :class:`Library`.
     """
+    from rockscan.core.match import require_library
+
+    require_library(library)
     metadata = {
         "format": LIBRARY_FORMAT,
         "version": LIBRARY_VERSION,

@@ -252,11 +252,14 @@ def classify_image(
     ------
     NoRockFoundError
         If no rock stands out from the ground.
+    TypeError
+        If ``library`` is not a :class:`Library` (a name such as ``"default"``).
     """
+    from rockscan.core.match import require_library
+
     config = config or ClassifyConfig()
-    seg, rocks = measure_rocks(
-        pixels, library.face_config.n_angles, config.segment, all_rocks=all_rocks, scale=scale
-    )
+    n_angles = require_library(library).face_config.n_angles
+    seg, rocks = measure_rocks(pixels, n_angles, config.segment, all_rocks=all_rocks, scale=scale)
     results = []
     for i, (measured, rock) in enumerate(zip(rocks, seg.rocks, strict=True)):
         outline, radii = measured.outline, measured.radii
@@ -299,10 +302,13 @@ def classify_path(
     Notes
     -----
     Only :class:`rockscan.core.errors.RockscanError` becomes an error result: anything
-    else is a bug and propagates.
+    else is a bug and propagates, as does the ``TypeError`` of a ``library`` that is
+    not a :class:`Library`.
     """
+    from rockscan.core.match import require_library
     from rockscan.io import read_image
 
+    require_library(library)  # before the photo is read: a wrong argument is no bad photo
     config = config or ClassifyConfig()
     start = time.perf_counter()
     try:

@@ -338,7 +338,12 @@ def triage_folder(
         If the observed library cannot be read or does not fit ``library``.
     KeyboardInterrupt
         After the report has been ranked with the rows finished so far.
+    TypeError
+        If ``library`` is not a :class:`Library`.
     """
+    from rockscan.core.match import require_library
+
+    require_library(library)
     config = config or TriageConfig()
     report = Path(report)
     report_format(report)
