@@ -234,3 +234,13 @@ def test_the_paper_preset_is_the_papers_exact_method_with_changes_on_top():
         metric="eigenspace", angle_metric="eigenspace", scan=False
     )
     assert MatchConfig.paper() != MatchConfig()
+
+
+@pytest.mark.parametrize(("metric", "mscore"), [("eigenspace", 1.0), ("face", 0.0)])
+def test_a_one_shape_librarys_mscore_is_fixed_by_its_distance(metric, mscore):
+    # Face space of one shape is a point: every eigenspace distance is 0 (MScore 1),
+    # and any other distance equals its own mean (MScore 0), whatever the sample.
+    lib = Library.from_shapes([ShapeSpec("egg", SuperformulaParams(1, 1, 0.75, 0.75, 0.75))])
+    for params in (PAPER_SHAPES["rounded-triangle"], SuperformulaParams(1, 1, 0.75, 0.75, 0.75)):
+        m = match_radii(turned_radii(params, 30.0), lib, MatchConfig(metric=metric))
+        assert m.mscore == pytest.approx(mscore, abs=1e-12)
