@@ -121,6 +121,25 @@ def test_default_threshold_is_half_the_median_library_spacing(small_lib):
     assert default_threshold(small_lib) == pytest.approx(0.5 * np.median(spacing), rel=1e-7)
 
 
+def test_default_threshold_of_a_large_library_is_the_median_of_evenly_spaced_shapes(monkeypatch):
+    # A 20,000-shape library's threshold scanned every shape against every other one.
+    rng = np.random.default_rng(5)
+    config = FaceConfig(n_angles=72)
+    radii = [shape_radii(random_superformula(rng), 72) for _ in range(21)]
+    library = Library.from_radii([f"s{i}" for i in range(21)], radii, face_config=config)
+    spacing = []
+    for k in range(len(library)):
+        dist = _brute_force_distances(library.radii[k], library)
+        dist[k] = np.inf
+        spacing.append(dist.min())
+    monkeypatch.setattr("rockscan.core.novelty.THRESHOLD_SHAPES", 6)
+    # Shapes 0, 4, 8, 12, 16 and 20 of 21.
+    expected = 0.5 * np.median(np.array(spacing)[[0, 4, 8, 12, 16, 20]])
+    # rel 1e-5: the scan's complex64 spectra against faces compared directly, at distances of 0.02.
+    assert default_threshold(library) == pytest.approx(expected, rel=1e-5)
+    assert default_threshold(library) != pytest.approx(0.5 * np.median(spacing), rel=1e-3)
+
+
 def test_default_threshold_of_the_builtin_library(default_lib):
     # The figure docs/triage.md quotes.
     assert default_threshold(default_lib) == pytest.approx(0.133, abs=0.002)

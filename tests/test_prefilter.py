@@ -7,7 +7,7 @@ import pytest
 
 from rockscan.core.information import FaceConfig, sample_term
 from rockscan.core.library import Library
-from rockscan.core.match import MatchConfig, match_radii, rotation_scores
+from rockscan.core.match import MatchConfig, match_radii, nearest_other_distance, rotation_scores
 from rockscan.core.prefilter import Prefilter, SensorPrefilter, features_of
 
 #: Coarse faces (72 rays of 20 sections) keep a library of hundreds of shapes fast.
@@ -175,3 +175,13 @@ def test_a_large_librarys_file_keeps_its_sensor_metric(large_lib, tmp_path, monk
     np.savez(tmp_path / "bad.npz", **arrays)
     with pytest.raises(LibraryError, match="inconsistent"):
         load_library(tmp_path / "bad.npz")
+
+
+@pytest.mark.parametrize("metric", ["eigenspace", "face"])
+def test_the_nearest_other_shape_through_the_pruned_scan_is_the_exhaustive_one(large_lib, metric):
+    # A library shape is its own nearest (distance 0); the pruning must leave it
+    # out and still find the nearest of the others, as a scan of every shape does.
+    for k in range(0, len(large_lib), 9):
+        whole = rotation_scores(large_lib.radii[k], large_lib, metric=metric).min(axis=0)
+        whole[k] = np.inf
+        assert nearest_other_distance(large_lib, k, metric=metric) == pytest.approx(whole.min(), rel=1e-6)

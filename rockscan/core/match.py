@@ -444,6 +444,43 @@ def _scan(
 
 
 @one_blas_thread
+def nearest_other_distance(library: Library, k: int, *, metric: str = "eigenspace") -> float:
+    """Distance from a library shape to the nearest other one, each at its best rotation.
+
+    Parameters
+    ----------
+    library : Library
+    k : int
+        The shape's position in the library.
+    metric : {"eigenspace", "face"}
+
+    Returns
+    -------
+    distance : float
+        As :func:`rotation_scores` gives it; inf for a one-shape library.
+
+    Notes
+    -----
+    A large library scans only the shapes its prefilter cannot rule out, as a
+    match does, so that all shapes' nearest neighbours cost about one match
+    each, not one scan of the whole library each.
+    """
+    radii = require_library(library).radii[k]
+    config = library.face_config
+    metric = _check_metric(metric)
+    prefilter = library.prefilter
+    if prefilter is None or config.grid != "polar" or len(library) < 2:
+        dist = rotation_scores(radii, library, metric=metric).min(axis=0)
+        dist[k] = np.inf
+        return float(dist.min())
+    q = sample_term(radii, config)
+    shortlist = prefilter.select(q, library, metric, exclude=k)
+    dist = _scan(radii, library, (metric,), scan=True, q=q, shapes=shortlist)[metric].min(axis=0)
+    dist[shortlist.is_reference | (shortlist.index == k)] = np.inf
+    return float(dist.min())
+
+
+@one_blas_thread
 def match_radii(radii: ArrayLike, library: Library, config: MatchConfig | None = None) -> Match:
     """Match a sample outline, given as radii, against a library.
 

@@ -320,7 +320,9 @@ class Prefilter:
         k = min(self.n_first, lb.size)
         return np.sort(np.argpartition(lb, k - 1)[:k]) if k < lb.size else np.arange(lb.size)
 
-    def select(self, q: NDArray[np.float64], library: Library, metric: str) -> Shortlist:
+    def select(
+        self, q: NDArray[np.float64], library: Library, metric: str, *, exclude: int | None = None
+    ) -> Shortlist:
         """The shortlist of one sample: the shapes that could be its nearest.
 
         Parameters
@@ -331,6 +333,9 @@ class Prefilter:
             The library this prefilter belongs to.
         metric : {"eigenspace", "face"}
             The distance the nearest shape minimises.
+        exclude : int, optional
+            A shape that may not be the nearest (the sample's own, when the
+            sample is a library shape and its nearest other one is wanted).
 
         Returns
         -------
@@ -346,6 +351,8 @@ class Prefilter:
         # The coarse bound of every shape, then the fine one of those it leaves in:
         # any shape whose bound exceeds a distance already found cannot be nearest.
         coarse = self.coarse_bounds(omega, extra_sq)
+        if exclude is not None:
+            coarse[exclude] = np.inf
         best = self._best_of(omega, norm_sq, templates, self.first(coarse))
         left = np.flatnonzero(coarse <= best)
         fine = self.bounds(omega, extra_sq, rows=left)
