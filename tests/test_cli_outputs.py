@@ -161,3 +161,60 @@ def test_an_empty_path_is_a_usage_error(runner, photo, spec, tmp_path, monkeypat
     before = sorted(p.name for p in tmp_path.iterdir())
     assert refused(runner.invoke(main, args), "an empty name")
     assert sorted(p.name for p in tmp_path.iterdir()) == before
+
+
+def test_classify_never_draws_over_a_photo_it_reads_even_with_overwrite(runner, photo, tmp_path):
+    before = photo.read_bytes()
+    # --overwrite drew the figure over the photo, then classified the figure.
+    result = runner.invoke(main, ["classify", str(photo), "--plot", str(photo), "--overwrite"])
+    assert refused(result, "is an input")
+    other = tmp_path / "out-egg.png"
+    other.write_bytes(before)
+    result = runner.invoke(
+        main, ["classify", str(photo), str(other), "--plot", str(tmp_path / "out.png"), "--overwrite"]
+    )
+    assert refused(result, "out-egg.png is an input")
+    assert photo.read_bytes() == before and other.read_bytes() == before
+
+
+def test_triage_observed_is_a_library_and_never_the_report_or_the_library_in_use(runner, photo, tmp_path):
+    lib = tmp_path / "lib.npz"
+    save_library(default_library(), lib)
+    before = lib.read_bytes()
+    folder = str(photo.parent)
+    report = str(tmp_path / "r.csv")
+    # The observed library was written over the report (a zip named .csv), or over the library.
+    assert refused(runner.invoke(main, ["triage", folder, "-o", report, "--observed", report]), "end in .npz")
+    result = runner.invoke(main, ["triage", folder, "-o", report, "-l", str(lib), "--observed", str(lib)])
+    assert refused(result, "is an input")
+    assert refused(runner.invoke(main, ["triage", folder, "--observed", str(tmp_path / "o.toml")]), ".npz")
+    assert lib.read_bytes() == before
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["egg.png", "lib.npz"]
+
+
+def test_the_groups_quiet_quiets_triage(runner, photo, tmp_path):
+    report = tmp_path / "out" / "r.csv"
+    report.parent.mkdir()
+    loud = runner.invoke(main, ["triage", str(photo.parent), "-o", str(report), "-j", "1"])
+    assert loud.exit_code == 0 and "ranked" in loud.output
+    result = runner.invoke(
+        main, ["-q", "triage", str(photo.parent), "-o", str(report), "-j", "1", "--overwrite"]
+    )
+    assert result.exit_code == 0 and result.output == ""
+
+
+def test_an_output_folder_that_cannot_be_written_is_refused_before_the_run(
+    runner, photo, tmp_path, monkeypatch
+):
+    # Found at the end, it lost the observed library of a whole run. (Root may write
+    # anywhere, so the folder's permission is what os.access answers here.)
+    locked = tmp_path / "locked"
+    locked.mkdir()
+    real = __import__("os").access
+    monkeypatch.setattr("os.access", lambda p, mode: False if str(p) == str(locked) else real(p, mode))
+    report = str(tmp_path / "r.csv")
+    result = runner.invoke(
+        main, ["triage", str(photo.parent), "-o", report, "--observed", str(locked / "o.npz")]
+    )
+    assert refused(result, "cannot write in folder")
+    assert not (tmp_path / "r.csv").exists()

@@ -149,7 +149,8 @@ def classify(
     from rockscan.run.pipeline import ClassifyConfig, classify_path
 
     photos = _expand_stdin(photos)
-    targets = _plot_targets(plot_path, photos, overwrite=overwrite) if plot_path is not None else {}
+    inputs = (*photos, *([library_path] if library_path else []))
+    targets = _plot_targets(plot_path, photos, inputs, overwrite=overwrite) if plot_path is not None else {}
     lib = _load_library(library_path)
     config = ClassifyConfig(match=match_config, px_per_mm=px_per_mm)
     failed = 0
@@ -230,12 +231,16 @@ def _plot(photo: str, rocks: Any, lib: Any, target: str, config: Any) -> None:
     )
 
 
-def _plot_targets(plot_path: str, photos: tuple[str, ...], *, overwrite: bool) -> dict[int, str]:
+def _plot_targets(
+    plot_path: str, photos: tuple[str, ...], inputs: tuple[str, ...], *, overwrite: bool
+) -> dict[int, str]:
     """One plot file per photo: the given name for one photo, else the name plus
     the photo's stem (and its position, if two photos share a stem).
 
     Refuses (a usage error) when a plot would replace a file, unless ``overwrite``:
-    a folder never holds plots of two runs without the user asking for it.
+    a folder never holds plots of two runs without the user asking for it; and
+    whatever is given, a plot that would replace one of the command's ``inputs``
+    (a photo, the library), which ``--overwrite`` once drew over before reading it.
     """
     _check_output(plot_path, "--plot")  # its folder; the plots' own names are checked below
     if len(photos) == 1:
@@ -247,6 +252,8 @@ def _plot_targets(plot_path: str, photos: tuple[str, ...], *, overwrite: bool) -
             i: f"{root}-{stem}{'-' + str(i) if stems.count(stem) > 1 else ''}{ext or '.png'}"
             for i, stem in enumerate(stems)
         }
+    for target in targets.values():
+        _check_output(target, "--plot", inputs=inputs)
     existing = [t for t in targets.values() if os.path.lexists(t)]
     if existing and not overwrite:
         more = f" and {len(existing) - 1} more" if len(existing) > 1 else ""

@@ -143,11 +143,17 @@ def _check_output(
     folder = os.path.dirname(os.path.abspath(path))
     if not os.path.isdir(folder):
         raise click.BadParameter(f"folder {folder!r} does not exist", param_hint=hint)
+    if not os.access(folder, os.W_OK | os.X_OK):
+        # Found at the end, it would lose the run's work (a triage's observed library).
+        raise click.BadParameter(f"cannot write in folder {folder!r} (permission denied)", param_hint=hint)
+    for given in inputs:
+        # By name too: two outputs of one run (a report and its observed library)
+        # may name one file that does not exist yet.
+        same_name = os.path.abspath(path) == os.path.abspath(given)
+        if same_name or (os.path.exists(path) and os.path.exists(given) and os.path.samefile(path, given)):
+            message = f"{path} is an input of this command; give another name"
+            raise click.BadParameter(message, param_hint=hint)
     if os.path.exists(path):
-        for given in inputs:
-            if os.path.exists(given) and os.path.samefile(path, given):
-                message = f"{path} is an input of this command; give another name"
-                raise click.BadParameter(message, param_hint=hint)
         if overwrite is False:
             message = f"{path} exists; give --overwrite to replace, or another name"
             raise click.BadParameter(message, param_hint=hint)
@@ -221,8 +227,8 @@ def _match_options(func: Callable[..., Any]) -> Callable[..., Any]:
             "--metric",
             type=click.Choice(RANK_METRICS),
             default=None,
-            help="Distance that ranks shapes (default: auto, the eigenspace distance for "
-            "libraries of 4 or more shapes).",
+            help="Distance that ranks shapes (default: auto, the paper's eigenspace distance for a "
+            "clean outline, the sensor model's for a noisy one; docs/decision.md).",
         ),
         click.option(
             "--angle-metric",

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import logging
 import os
 import shutil
 import signal
@@ -22,6 +23,7 @@ from rockscan.cli._main import (
     _load_library,
     _match_options,
     _px_per_mm_option,
+    log,
     main,
 )
 from rockscan.core.choices import NOVELTY_METRICS
@@ -139,7 +141,9 @@ def triage(
     from rockscan.run.pipeline import ClassifyConfig
     from rockscan.run.triage import TriageConfig, triage_folder
 
-    _check_options(workers, scheduler, resume, overwrite, report_path, observed_path)
+    _check_options(workers, scheduler, resume, overwrite, report_path, observed_path, library_path)
+    # `rockscan -q triage` is `triage -q`: the group's -q leaves warnings and errors only.
+    quiet = quiet or not log.isEnabledFor(logging.INFO)
     lib = _load_library(library_path)
     config = TriageConfig(
         classify=ClassifyConfig(match=match_config, px_per_mm=px_per_mm),
@@ -191,10 +195,13 @@ def _check_options(
     overwrite: bool,
     report_path: str | None,
     observed_path: str | None,
+    library_path: str | None,
 ) -> None:
     """Usage errors of a triage run, found before any photo is classified (an
     observed library that cannot be written at the end would lose what the run
-    learnt; a scheduler's address that cannot work would leave a report behind)."""
+    learnt; a scheduler's address that cannot work would leave a report behind;
+    an observed library named as the report or the library in use would be
+    written over it)."""
     from rockscan.core.errors import ParameterError
 
     if workers is not None and scheduler is not None:
@@ -211,7 +218,8 @@ def _check_options(
         except ParameterError as exc:
             raise click.BadParameter(str(exc), param_hint="-o/--output") from None
     _check_output(report_path, "-o/--output")
-    _check_output(observed_path, "--observed")
+    inputs = [p for p in (report_path, library_path) if p]
+    _check_output(observed_path, "--observed", suffixes=(".npz",), inputs=inputs)
     if scheduler is not None:
         from rockscan.run.backends import check_scheduler_address
 
