@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 import os
+import shutil
 import subprocess
 import sys
 from pathlib import Path
@@ -50,12 +51,13 @@ def test_every_format_records_version_library_hash_method_cutoffs_and_options(
     report = tmp_path / f"r{suffix}"
     config = TriageConfig(workers=1, classify=ClassifyConfig(match=MatchConfig(mscore_cutoff=0.4)))
     triage_folder(photos, report, default_lib, config)
-    expected = json.loads(json.dumps(report_provenance(default_lib, config)))
+    expected = json.loads(json.dumps(report_provenance(default_lib, config, folder=photos)))
     assert read_provenance(report) == expected
+    assert expected["photos"] == {"folder": os.path.abspath(photos), "relative_to": None}
     assert expected["library"]["sha256"] == library_hash(default_lib)
     # The per-shape cutoffs are the library's (in its hash); the user's own are recorded too.
     assert expected["cutoffs"] == {"tolerance": 0.2, "distance": None, "mscore": 0.4, "residual": None}
-    assert expected["method"]["metric"] == "sensor" and expected["options"]["all_rocks"] is False
+    assert expected["method"]["metric"] == "auto" and expected["options"]["all_rocks"] is False
     assert expected["rockscan"] == __import__("rockscan").__version__
     if suffix == ".html":
         page = report.read_text()
@@ -95,6 +97,10 @@ def test_the_library_hash_is_its_content_in_every_process(tmp_path, default_lib)
         (".html", ["--method", "paper"], "method.angle_metric"),
         (".jsonl", ["--all"], "options.all_rocks false (report) vs true (now)"),
         (".geojson", ["-l", "LIB"], "library.sha256"),
+        # auto ranks clean rocks as eigenspace does: its rows are not sensor's.
+        (".jsonl", ["--metric", "sensor"], 'method.metric "auto" (report) vs "sensor" (now)'),
+        # Another folder's photos would join the report.
+        (".csv", ["FOLDER"], "photos.folder"),
     ],
 )
 def test_resume_with_other_settings_exits_2_and_leaves_the_report_byte_for_byte(
@@ -108,10 +114,13 @@ def test_resume_with_other_settings_exits_2_and_leaves_the_report_byte_for_byte(
     lines = journal_path(report).read_bytes().splitlines(keepends=True)
     journal_path(report).write_bytes(b"".join(lines[:-1]))
     before = _files(report)
+    folder = str(photos)
+    if change == ["FOLDER"]:
+        other = tmp_path / "other"
+        shutil.copytree(photos, other)
+        folder, change = str(other), []
     change = [str(_small_library(tmp_path)) if a == "LIB" else a for a in change]
-    result = CliRunner().invoke(
-        main, ["triage", str(photos), "-o", str(report), "-j", "1", "--resume", *change]
-    )
+    result = CliRunner().invoke(main, ["triage", folder, "-o", str(report), "-j", "1", "--resume", *change])
     assert result.exit_code == 2, result.output
     (line,) = result.stderr.splitlines()
     assert line.startswith(f"rockscan: error: {report} was made with other settings (") and named in line
@@ -138,3 +147,21 @@ def test_a_report_that_records_nothing_is_not_resumed(photos, tmp_path, default_
     assert report.read_text() == json.dumps(row) + "\n"
     # It still reads.
     assert [r["path"] for r in read_rows(report)] == ["x.png"]
+
+
+def test_resume_from_another_working_folder_is_refused_not_doubled(photos, tmp_path, monkeypatch):
+    # Rows keep the paths as given: resumed from elsewhere, "../photos/a.png" was
+    # another photo than "photos/a.png", and every photo went into the report twice.
+    (tmp_path / "elsewhere").mkdir()
+    monkeypatch.chdir(photos.parent)
+    report = tmp_path / "out" / "r.jsonl"
+    report.parent.mkdir()
+    args = ["-o", str(report), "-j", "1", "-q"]
+    assert CliRunner().invoke(main, ["triage", photos.name, *args]).exit_code == 0
+    before = _files(report)
+    monkeypatch.chdir(tmp_path / "elsewhere")
+    result = CliRunner().invoke(main, ["triage", os.path.relpath(photos), *args, "--resume"])
+    assert result.exit_code == 2 and "photos.relative_to" in result.stderr
+    assert _files(report) == before
+    monkeypatch.chdir(photos.parent)
+    assert CliRunner().invoke(main, ["triage", photos.name, *args, "--resume"]).exit_code == 0

@@ -9,6 +9,7 @@ from __future__ import annotations
 import dataclasses
 import hashlib
 import json
+import os
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
@@ -73,7 +74,11 @@ def library_hash(library: Library) -> str:
 
 
 def report_provenance(
-    library: Library, config: TriageConfig, novelty: ObservedShapes | None = None
+    library: Library,
+    config: TriageConfig,
+    novelty: ObservedShapes | None = None,
+    *,
+    folder: str | os.PathLike[str] | None = None,
 ) -> dict[str, Any]:
     """How a triage report's rows are made: everything that changes a row.
 
@@ -84,6 +89,11 @@ def report_provenance(
     novelty : ObservedShapes, optional
         The observed library at the start of the run (its threshold and metric
         are recorded; the shapes it gains during a run are not settings).
+    folder : path-like, optional
+        The folder of photos. Recorded as ``photos``: its absolute path, and
+        for a folder given as a relative path the working folder the rows'
+        paths are relative to, so that a resumed run neither adds another
+        folder's photos nor gives the same photos again under other names.
 
     Returns
     -------
@@ -92,7 +102,7 @@ def report_provenance(
         ``method`` (the matcher's metrics and scan), ``cutoffs`` (in force,
         defaults resolved), ``options`` (every rock, novelty, the interest
         rule's weight, other classify settings), ``segmentation`` (every
-        segmentation setting). JSON-able.
+        segmentation setting), and ``photos`` when ``folder`` is given. JSON-able.
     """
     from rockscan._version import __version__
 
@@ -104,7 +114,7 @@ def report_provenance(
     if novelty is not None:
         options["novelty"] = {"metric": novelty.metric, "threshold": novelty.threshold}
         options["novelty_weight"] = novelty_weight(library, config)
-    return {
+    provenance: dict[str, Any] = {
         "rockscan": __version__,
         "library": {
             "sha256": library_hash(library),
@@ -112,7 +122,9 @@ def report_provenance(
             "face": library.face_config.kind,
         },
         "method": {
-            "metric": match.resolved_metric(library),
+            # As given: "auto" ranks a clean sample as "eigenspace" does and a noisy
+            # one as "sensor" does, so it is neither, and rows of the two never mix.
+            "metric": match.metric,
             "angle_metric": match.angle_metric,
             "scan": match.scan,
             "refine": match.refine,
@@ -128,6 +140,13 @@ def report_provenance(
         "options": options,
         "segmentation": segmentation,
     }
+    if folder is not None:
+        relative = not os.path.isabs(folder)
+        provenance["photos"] = {
+            "folder": os.path.abspath(folder),
+            "relative_to": os.path.abspath(os.curdir) if relative else None,
+        }
+    return provenance
 
 
 def novelty_weight(library: Library, config: TriageConfig) -> float:

@@ -363,7 +363,7 @@ def _triage_locked(
     on_error: Callable[[dict[str, Any]], None] | None,
 ) -> TriageSummary:
     started = time.perf_counter()
-    run = _TriageRun(report, _title(folder), library, config, observed, progress, on_error)
+    run = _TriageRun(report, folder, library, config, observed, progress, on_error)
     todo = [p for p in listing.photos if photo_key(p) not in run.journal.done]
     problems = [(p, msg) for p, msg in listing.problems if photo_key(p) not in run.journal.done]
     run.total = len(todo) + len(problems)
@@ -459,19 +459,19 @@ class _TriageRun:
     def __init__(
         self,
         report: Path,
-        title: str,
+        folder: str | os.PathLike[str],
         library: Library,
         config: TriageConfig,
         observed: str | os.PathLike[str] | None,
         progress: Progress | None,
         on_error: Callable[[dict[str, Any]], None] | None,
     ) -> None:
-        self.report, self.title, self.library, self.config = report, title, library, config
+        self.report, self.title, self.library, self.config = report, _title(folder), library, config
         self.progress, self.on_error = progress, on_error
         self.observed_path = Path(observed) if observed is not None else None
         self.novelty = self._observed_shapes()
         self.novelty_weight = novelty_weight(library, config)
-        provenance = report_provenance(library, config, self.novelty)
+        provenance = report_provenance(library, config, self.novelty, folder=folder)
         self.journal = ReportJournal(
             report, resume=config.resume, overwrite=config.overwrite, provenance=provenance
         )
