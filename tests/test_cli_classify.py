@@ -549,6 +549,9 @@ NOT_FINITE, OUT_OF_RANGE = "is not a finite number", "is not in the range"
     [
         *[(CLASSIFY, "--px-per-mm", v, NOT_FINITE) for v in ("nan", "inf", "-inf")],
         (CLASSIFY, "--px-per-mm", "0", OUT_OF_RANGE),
+        # An area of inf mm2 stopped a JSON report with a traceback.
+        (CLASSIFY, "--px-per-mm", "1e-300", OUT_OF_RANGE),
+        (CLASSIFY, "--px-per-mm", "1e300", OUT_OF_RANGE),
         *[
             (CLASSIFY, o, "nan", NOT_FINITE)
             for o in ("--distance-cutoff", "--mscore-cutoff", "--residual-cutoff")

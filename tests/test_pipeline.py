@@ -197,8 +197,9 @@ def test_sizes_in_millimetres_are_those_of_a_drawn_ellipse(default_lib, a, b, an
     np.testing.assert_allclose(record["centroid"], (210.3, 140.7), atol=0.05)
 
 
-@pytest.mark.parametrize("bad", [0, -2.0, float("nan"), float("inf"), "3", True])
+@pytest.mark.parametrize("bad", [0, -2.0, float("nan"), float("inf"), "3", True, 1e-300, 1e300])
 def test_px_per_mm_must_be_a_positive_number(bad):
+    # 1e-300 gave an area of inf mm2, which no JSON report can hold (a traceback in triage).
     with pytest.raises(ParameterError, match="px_per_mm must be a positive number"):
         ClassifyConfig(px_per_mm=bad)
 

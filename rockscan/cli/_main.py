@@ -27,7 +27,7 @@ from typing import Any, TypeVar
 
 import click
 
-from rockscan.core.choices import METHODS, METRICS, RANK_METRICS
+from rockscan.core.choices import METHODS, METRICS, PX_PER_MM_RANGE, RANK_METRICS
 
 #: Exit status when the reader of standard output goes away (``| head``).
 BROKEN_PIPE_STATUS = 141
@@ -205,10 +205,10 @@ def _px_per_mm_option(func: Callable[..., Any]) -> Callable[..., Any]:
     return click.option(
         "--px-per-mm",
         "px_per_mm",
-        type=Number(0, low_open=True),
+        type=Number(*PX_PER_MM_RANGE),
         default=None,
         metavar="F",
-        help="Photo pixels per millimetre: adds area_mm2, equivalent_diameter_mm, "
+        help="Photo pixels per millimetre (1e-6 to 1e6): adds area_mm2, equivalent_diameter_mm, "
         "major_axis_mm and minor_axis_mm.",
     )(func)
 

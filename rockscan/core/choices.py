@@ -12,7 +12,8 @@ FACE_KINDS = ("information", "information-shape", "radii")
 GRIDS = ("polar", "cartesian")
 #: What a match distance measures.
 METRICS = ("eigenspace", "face")
-#: What ranks library shapes: the sensor-model distance, a face metric, or "auto" (the sensor distance).
+#: What ranks library shapes: the sensor-model distance, a face metric, or "auto" (the
+#: eigenspace distance for a clean outline, the sensor distance for a noisy one).
 RANK_METRICS = ("auto", "sensor", *METRICS)
 #: What a novelty score measures (the whole face by default; see rockscan.core.novelty).
 NOVELTY_METRICS = ("face", "eigenspace")
@@ -22,6 +23,9 @@ METHODS = ("default", "paper")
 RENDER_POLARITIES = ("random", "light", "dark")
 #: Rock polarity settings of the segmentation.
 POLARITIES = ("auto", "dark", "light")
+#: Photo pixels per millimetre a size may be given in: a pixel of a kilometre to one of a
+#: nanometre. Beyond them an area in square millimetres overflows to inf (or underflows to 0).
+PX_PER_MM_RANGE = (1e-6, 1e6)
 #: Outline noise a library tolerates unless told otherwise: the paper's claim of 20%.
 DEFAULT_TOLERANCE = 0.2
 #: Most rays a library's faces may have: a tenth of a degree (a face of 3,600 rays of 50

@@ -26,6 +26,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from rockscan.core.choices import PX_PER_MM_RANGE
 from rockscan.core.errors import ParameterError
 
 __all__ = [
@@ -171,8 +172,9 @@ def outline_sizes(xy: ArrayLike, px_per_mm: float) -> OutlineSizes:
     -------
     OutlineSizes
     """
-    if not (isinstance(px_per_mm, (int, float)) and np.isfinite(px_per_mm) and px_per_mm > 0):
-        raise ParameterError(f"px_per_mm must be a positive number, got {px_per_mm!r}")
+    low_px, high_px = PX_PER_MM_RANGE
+    if not (isinstance(px_per_mm, (int, float)) and low_px <= px_per_mm <= high_px):
+        raise ParameterError(f"px_per_mm must be a number from {low_px:g} to {high_px:g}, got {px_per_mm!r}")
     area, _, covariance = polygon_moments(xy)
     low, high = np.clip(np.linalg.eigvalsh(covariance), 0.0, None)
     mm = 1.0 / float(px_per_mm)

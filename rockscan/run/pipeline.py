@@ -8,7 +8,6 @@ from __future__ import annotations
 
 import dataclasses
 import logging
-import math
 import os
 import time
 from dataclasses import dataclass, field
@@ -18,6 +17,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from rockscan.core._threads import one_blas_thread
+from rockscan.core.choices import PX_PER_MM_RANGE
 from rockscan.core.errors import ParameterError, RockscanError
 from rockscan.core.match import Match, MatchConfig, match_radii
 from rockscan.core.outline import Outline, trace_outline
@@ -81,10 +81,10 @@ class ClassifyConfig:
     def __post_init__(self) -> None:
         value = self.px_per_mm
         number = isinstance(value, (int, float)) and not isinstance(value, bool)
-        if value is not None and not (number and math.isfinite(value) and value > 0):
-            raise ParameterError(
-                f"px_per_mm must be a positive number (pixels per millimetre), got {value!r}"
-            )
+        low, high = PX_PER_MM_RANGE
+        if value is not None and not (number and low <= value <= high):
+            message = f"px_per_mm must be a positive number of pixels per millimetre, {low:g} to {high:g}"
+            raise ParameterError(f"{message}; got {value!r}")
 
 
 @dataclass(frozen=True, eq=False)
