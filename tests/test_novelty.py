@@ -332,3 +332,11 @@ def test_a_grown_library_carries_its_sensor_metric_and_cutoffs(small_lib):
     assert grown.calibration is None
     np.testing.assert_array_equal(grown.cutoffs[: len(small_lib)], small_lib.cutoffs)
     np.testing.assert_array_equal(grown.cutoffs[len(small_lib) :], np.median(small_lib.cutoffs))
+
+
+def test_a_one_shape_library_asks_for_a_threshold(tmp_path):
+    # Its default was inf, refused as if the user had given it.
+    lib = Library.from_shapes([ShapeSpec("egg", SuperformulaParams(1, 1, 0.75, 0.75, 0.75))])
+    with pytest.raises(ParameterError, match=r"one-shape library has no spacing.*--novelty-threshold"):
+        ObservedShapes.from_library(lib)
+    assert ObservedShapes.from_library(lib, NoveltyConfig(threshold=0.1)).threshold == 0.1

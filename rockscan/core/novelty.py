@@ -142,6 +142,11 @@ def default_threshold(library: Library, *, metric: str = "face") -> float:
     threshold : float
         In the units of the novelty score.
 
+    Raises
+    ------
+    ParameterError
+        For a one-shape library, which has no spacing: give a threshold.
+
     Notes
     -----
     The library's shapes are the scale at which rockscan tells shapes apart: a
@@ -159,6 +164,11 @@ def default_threshold(library: Library, *, metric: str = "face") -> float:
     if metric not in NOVELTY_METRICS:
         raise ParameterError(f"metric must be one of {', '.join(NOVELTY_METRICS)}; got {metric!r}")
     n = len(library)
+    if n < 2:
+        raise ParameterError(
+            "a one-shape library has no spacing between shapes to set the novelty threshold from; "
+            "give one (NoveltyConfig(threshold=...), --novelty-threshold)"
+        )
     shapes = np.unique(np.linspace(0, n - 1, min(n, THRESHOLD_SHAPES)).round().astype(np.int64))
     nearest = [nearest_other_distance(library, int(k), metric=metric) for k in shapes]
     return 0.5 * float(np.median(nearest))
