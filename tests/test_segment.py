@@ -438,3 +438,31 @@ def test_a_flat_photo_with_a_patch_segments_or_finds_no_rock(rows, cols, ground,
         return
     assert seg.n_rocks >= 1
     assert all(rock.mask.any() for rock in seg.rocks)
+
+
+@pytest.mark.parametrize(
+    ("dtype", "top"),
+    [(np.uint16, 255), (np.uint16, 4095), (np.int64, 255), (np.int32, 1023), (np.uint32, 255)],
+)
+def test_integers_in_the_low_bits_of_a_wide_type_are_the_same_photo(dtype, top):
+    # 8-bit values stored as 16 bits (or numpy's int64) gave "nothing stands out":
+    # the contrast a rock needs was a fraction of the type's range, not the photo's.
+    photo = render_photo(SPECS["five-armed-star"], RenderConfig(rows=120, cols=160, angle_deg=20.0), rng=1)
+    eight = photo.pixels
+    wide = np.round(eight.astype(np.float64) * (top / 255.0)).astype(dtype)
+    found = measure_rocks(wide, 360)[1][0].outline
+    expected = measure_rocks(eight, 360)[1][0].outline
+    assert found.area_px == pytest.approx(expected.area_px, rel=0.02)
+    np.testing.assert_allclose(found.centroid_rowcol, expected.centroid_rowcol, atol=0.3)
+
+
+def test_a_wide_photo_using_its_range_is_left_as_it_is():
+    from rockscan.core.segment.channels import _check_pixels
+
+    full = np.array([[0, 40000], [65535, 3]] * 4, np.uint16).repeat(4, axis=1)
+    assert _check_pixels(full) is full
+    dark = np.full((8, 8, 4), 65535, np.uint16)
+    dark[..., :3] = 200
+    shifted = _check_pixels(dark)
+    # Colour up to the top 8 bits, alpha as it was; the caller's array untouched.
+    assert shifted[0, 0].tolist() == [200 << 8, 200 << 8, 200 << 8, 65535] and dark[0, 0, 0] == 200

@@ -60,7 +60,34 @@ def _check_pixels(pixels: NDArray[np.generic]) -> NDArray[np.generic]:
             f"float photo pixels must lie in [0, 1], got most above 1 (up to {float(arr.max()):g}); "
             "scale them (8-bit values: divide by 255)"
         )
+    if arr.dtype.kind in "ui" and arr.dtype.itemsize > 1:
+        arr = _full_range(arr)
     return arr
+
+
+def _full_range(arr: NDArray[np.integer]) -> NDArray[np.integer]:
+    """A photo of integers wider than 8 bits whose colour uses only the low bits
+    (a 10-, 12- or 14-bit sensor's values, or 8-bit ones, stored in 16 bits or
+    in numpy's default int64) shifted up to fill its type; any other photo as
+    it is. A signed type's negatives are no light, 0.
+
+    The contrast a rock needs is a fraction of the full scale: 8-bit values
+    stored as 16 bits gave "nothing stands out" where the same values as 8 bits
+    gave the rock. The bits in use are rounded up to an even count of at least
+    8, so that a dark photo of a sensor's full depth stays as dark as it is.
+    """
+    colour = arr[..., :3] if arr.ndim == 3 else arr
+    used = max(8, int(colour.max()).bit_length())
+    room = np.iinfo(arr.dtype).bits - (arr.dtype.kind == "i")
+    shift = room - (used + used % 2)
+    if shift <= 0:
+        return arr
+    out = np.maximum(arr, 0) if arr.dtype.kind == "i" else arr.copy()
+    if out.ndim == 3:
+        out[..., :3] <<= shift
+    else:
+        out <<= shift
+    return out
 
 
 def _pyramid(arr: NDArray[np.generic], smallest: int) -> list[NDArray[np.generic]]:
