@@ -244,3 +244,20 @@ def test_a_one_shape_librarys_mscore_is_fixed_by_its_distance(metric, mscore):
     for params in (PAPER_SHAPES["rounded-triangle"], SuperformulaParams(1, 1, 0.75, 0.75, 0.75)):
         m = match_radii(turned_radii(params, 30.0), lib, MatchConfig(metric=metric))
         assert m.mscore == pytest.approx(mscore, abs=1e-12)
+
+
+def test_a_given_distance_cutoff_tests_the_distance_that_ranked_the_sample(default_lib):
+    # "auto" ranks a clean sample by the eigenspace w, and the cutoff tested the
+    # sensor distance anyway: a sample within the cutoff by w was refused.
+    sample = turned_radii(PAPER_SHAPES["six-pointed-star"], 20.0) * (
+        1 + 0.002 * np.cos(7 * polar_angles(360))
+    )
+    clean = match_radii(sample, default_lib)
+    w, sensor = clean.distance, clean.sensor_distance
+    assert w < sensor
+    cutoff = (w + sensor) / 2
+    auto = match_radii(sample, default_lib, MatchConfig(distance_cutoff=cutoff))
+    assert auto.interesting and auto.decided_by == "distance-cutoff"
+    assert not match_radii(
+        sample, default_lib, MatchConfig(distance_cutoff=cutoff, metric="sensor")
+    ).interesting

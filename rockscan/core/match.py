@@ -79,9 +79,10 @@ class MatchConfig:
     Parameters
     ----------
     distance_cutoff : float or None
-        The paper's theta: the best shape must be within this distance ``w``
-        (of the ranking metric). None (default) takes the library's calibrated
-        cutoff of the nearest shape on the sensor distance instead.
+        The paper's theta: the best shape must be within this distance of the
+        metric that ranked the sample (with ``"auto"``, ``w`` for a clean sample
+        and the sensor distance for a noisy one). None (default) takes the
+        library's calibrated cutoff of the nearest shape on the sensor distance.
     mscore_cutoff : float or None
         The paper's gamma: MScore must also exceed it. None: no MScore test.
     residual_cutoff : float or None
@@ -186,7 +187,8 @@ class Match:
         Sensor-model distance to the nearest shape (what the calibrated cutoff tests).
     cutoff_distance : float
         The cutoff the distance test used: the nearest shape's calibrated
-        cutoff on ``sensor_distance``, or ``MatchConfig.distance_cutoff`` on ``w``.
+        cutoff on ``sensor_distance``, or ``MatchConfig.distance_cutoff`` on the
+        distance that ranked the sample.
     decided_by : str
         The test that decided (one of ``DECIDERS``): for a rejection the first
         that failed, for an acceptance the distance test.
@@ -560,8 +562,11 @@ def match_radii(radii: ArrayLike, library: Library, config: MatchConfig | None =
     w[k] = eps_best if w_metric == "eigenspace" else float(np.hypot(eps_best, residual))
     mean_w = float(w.mean())
     mscore = 1.0 - float(w.min()) / mean_w if mean_w > 0 else 1.0
+    # The distance a given cutoff tests is the one that ranked: with "auto", the
+    # eigenspace w for a clean sample, the sensor distance for a noisy one.
+    ranked = float(sensor[k]) if metric == "sensor" else float(w[k])
     interesting, cutoff, decided_by = _decide(
-        config, library, k, float(sensor[k]), noise, float(w[k]), mscore, residual
+        config, library, k, float(sensor[k]), noise, ranked, mscore, residual
     )
     return Match(
         nearest=library.names[k],
@@ -683,7 +688,7 @@ def _decide(
     k: int,
     sensor: float,
     noise: float,
-    w: float,
+    ranked: float,
     mscore: float,
     residual: float,
 ) -> tuple[bool, float, str]:
@@ -691,15 +696,14 @@ def _decide(
 
     The distance test: the sensor distance against shape k's calibrated
     cutoff at the sample's estimated noise (:func:`rockscan.core.calibrate.cutoff_at`), or, when
-    ``distance_cutoff`` is given, the ranked distance (the sensor distance, or
-    ``w`` for another ranking metric) against it. Then the MScore and residual
-    tests, only when their cutoffs are given.
+    ``distance_cutoff`` is given, the ``ranked`` distance (the sensor distance, or
+    ``w`` of the metric that ranked this sample) against it. Then the MScore and
+    residual tests, only when their cutoffs are given.
     """
     if config.distance_cutoff is None:
         cutoff = cutoff_at(library.calibration_in_force, k, noise)
         value, decider = sensor, "calibrated-cutoff"
     else:
-        ranked = sensor if config.resolved_metric(library) == "sensor" else w
         cutoff, value, decider = float(config.distance_cutoff), ranked, "distance-cutoff"
     if not value <= cutoff:
         return False, cutoff, decider
