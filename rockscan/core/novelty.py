@@ -51,7 +51,7 @@ from rockscan.core.choices import NOVELTY_METRICS
 from rockscan.core.eigen import EigenBasis
 from rockscan.core.errors import LibraryError, ParameterError
 from rockscan.core.information import information_face, sample_term
-from rockscan.core.library import EXACT_LIMIT, Library, sanitize_name, unique_name
+from rockscan.core.library import EXACT_LIMIT, NAME_PATTERN, Library, sanitize_name, unique_name
 from rockscan.core.match import MatchConfig, _template_spectra, match_radii, nearest_other_distance
 from rockscan.core.polar import symmetry_order
 from rockscan.core.prefilter import (
@@ -308,7 +308,9 @@ class ObservedShapes:
         Parameters
         ----------
         name : str
-            Unique shape name (see :func:`observed_name`).
+            Unique shape name of ``[a-z0-9-]+`` starting ``seen-`` (see
+            :func:`observed_name`), so that the observed library's file loads
+            and counts it as observed.
         radii : (n_angles,) array_like of float
             The shape's radii, any scale.
 
@@ -317,6 +319,13 @@ class ObservedShapes:
         ObservedShapes
         """
         lib = self.library
+        if not isinstance(name, str) or not NAME_PATTERN.match(name) or not name.startswith(OBSERVED_PREFIX):
+            # Saved, any other name was lost: a file that does not load, or a shape
+            # counted among the library of interest's when it was read again.
+            raise ParameterError(
+                f"an observed shape's name must match [a-z0-9-]+ and start with {OBSERVED_PREFIX!r} "
+                f"(observed_name() makes one), got {name!r}"
+            )
         radii = np.asarray(radii, dtype=np.float64)
         if radii.shape != (lib.face_config.n_angles,):
             raise ParameterError(
