@@ -346,5 +346,5 @@ def test_a_one_shape_library_asks_for_a_threshold(tmp_path):
 def test_an_observed_shape_needs_a_name_its_file_keeps(small_lib, name):
     # Saved, "Seen Rock #1" made a file that did not load (every observed shape lost),
     # and "rock-1" was read back as a shape of the library of interest.
-    with pytest.raises(ParameterError, match="must match .* and start with 'seen-'"):
+    with pytest.raises(ParameterError, match=r"must match .* and start with 'seen-'"):
         ObservedShapes.from_library(small_lib).with_shape(name, small_lib.radii[0])
