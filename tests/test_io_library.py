@@ -52,7 +52,33 @@ def test_spec_images_are_relative_to_the_spec(tmp_path):
     path.write_text('[[shape]]\nname = "mine"\nimages = ["a.png", "../b.jpg"]\ninterest = 3\n')
     (shape,) = read_spec(path)
     assert shape.params is None and shape.interest == 3
-    assert shape.images == (str(path.parent / "a.png"), str(path.parent / "../b.jpg"))
+    assert shape.images == (str(path.parent / "a.png"), str(tmp_path / "b.jpg"))
+
+
+def test_spec_images_written_and_read_back_name_the_same_files(tmp_path, monkeypatch):
+    # The paths were written relative to the working folder and read relative to the
+    # spec's: "specdir/coin.png" came back as "specdir/specdir/coin.png".
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "specdir").mkdir()
+    write_spec([ShapeSpec("coin", images=("specdir/coin.png", str(tmp_path / "b.png")))], "specdir/lib.toml")
+    assert 'images = ["coin.png", "../b.png"]' in (tmp_path / "specdir" / "lib.toml").read_text()
+    monkeypatch.chdir(tmp_path / "specdir")
+    (shape,) = read_spec("lib.toml")
+    assert shape.images == (str(tmp_path / "specdir" / "coin.png"), str(tmp_path / "b.png"))
+
+
+@pytest.mark.parametrize(
+    ("shapes", "message"),
+    [
+        ([], "at least one shape"),
+        ([ShapeSpec("a", images=("x.png",)), ShapeSpec("a", images=("y.png",))], "used twice: a"),
+        ([ShapeSpec("a", images=("roch\udce9.png",))], "not valid UTF-8"),
+    ],
+)
+def test_write_spec_refuses_what_read_spec_would(tmp_path, shapes, message):
+    with pytest.raises(SpecError, match=message):
+        write_spec(shapes, tmp_path / "s.toml")
+    assert not (tmp_path / "s.toml").exists()
 
 
 @pytest.mark.parametrize(

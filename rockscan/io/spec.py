@@ -141,7 +141,8 @@ def parse_spec(data: dict[str, object], *, base: Path | None = None, source: str
                     raise SpecError(f"missing {', '.join(sorted(missing))}")
                 params = SuperformulaParams(**{k: entry[k] for k in _PARAM_NAMES if k in entry})
             paths = tuple(
-                str((base / p) if base is not None and not Path(p).is_absolute() else p) for p in images
+                os.path.abspath(base / p) if base is not None and not Path(p).is_absolute() else p
+                for p in images
             )
             shape = ShapeSpec(name=name, params=params, interest=entry.get("interest", 1.0), images=paths)
         except (ParameterError, SpecError) as exc:
@@ -170,8 +171,22 @@ def write_spec(shapes: Sequence[ShapeSpec], path: str | os.PathLike[str] | None 
     Returns
     -------
     text : str
-        The spec, readable by :func:`read_spec`.
+        The spec, readable by :func:`read_spec`. Example image paths are
+        written relative to the spec's folder (as :func:`read_spec` reads
+        them), or as given when there is no ``path``.
+
+    Raises
+    ------
+    SpecError
+        For no shapes, a name used twice, or an image path that is not valid
+        UTF-8 (TOML's encoding): specs :func:`read_spec` would refuse.
     """
+    names = [shape.name for shape in shapes]
+    if not names:
+        raise SpecError("a spec needs at least one shape")
+    if twice := sorted({name for name in names if names.count(name) > 1}):
+        raise SpecError(f"shape names used twice: {', '.join(twice)}")
+    folder = os.path.dirname(os.path.abspath(path)) if path is not None else None
     lines: list[str] = []
     for shape in shapes:
         lines.append("[[shape]]")
@@ -180,7 +195,7 @@ def write_spec(shapes: Sequence[ShapeSpec], path: str | os.PathLike[str] | None 
             for key, value in shape.params.as_dict().items():
                 lines.append(f"{key} = {_toml_float(value)}")
         if shape.images:
-            listed = ", ".join(_toml_string(p) for p in shape.images)
+            listed = ", ".join(_toml_string(_spec_path(p, folder)) for p in shape.images)
             lines.append(f"images = [{listed}]")
         if shape.interest != 1.0:
             lines.append(f"interest = {_toml_float(shape.interest)}")
@@ -189,6 +204,22 @@ def write_spec(shapes: Sequence[ShapeSpec], path: str | os.PathLike[str] | None 
     if path is not None:
         write_bytes_atomic(path, text.encode("utf-8"), what="spec")
     return text
+
+
+def _spec_path(image: str, folder: str | None) -> str:
+    """An example image's path as a spec in ``folder`` names it (None: as given)."""
+    try:
+        image.encode("utf-8")
+    except UnicodeEncodeError:
+        raise SpecError(
+            f"{image!r} is not valid UTF-8, which a spec (TOML) must be; rename the file"
+        ) from None
+    if folder is None:
+        return image
+    try:
+        return os.path.relpath(os.path.abspath(image), folder)
+    except ValueError:  # another drive (Windows): no relative path
+        return os.path.abspath(image)
 
 
 def _toml_string(text: str) -> str:
