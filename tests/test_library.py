@@ -100,6 +100,20 @@ def test_library_lookup_and_immutability(paper_lib):
         paper_lib.index("moon")
     with pytest.raises(ValueError, match="read-only"):
         paper_lib.radii[0, 0] = 2.0
+    # interest and symmetry too: default_library() is one object, and a caller's
+    # edit of its symmetry changed every later match's angle.
+    for array in (paper_lib.interest, paper_lib.symmetry):
+        with pytest.raises(ValueError, match="read-only"):
+            array[0] = 0
+
+
+def test_a_library_copies_what_it_is_given_and_leaves_it_writable():
+    interest = np.array([1.0, 2.0])
+    radii = np.ones((2, 360))
+    radii[1] += 0.2 * np.cos(3 * np.linspace(0, 2 * np.pi, 360, endpoint=False))
+    lib = Library.from_radii(["a", "b"], radii, interest=interest)
+    interest[0] = 5.0
+    assert lib.interest.tolist() == [1.0, 2.0] and interest.flags.writeable
 
 
 def test_a_shape_given_twice_is_refused_and_a_close_variant_is_not():

@@ -217,11 +217,16 @@ class Library:
             raise LibraryError("library eigenvalues must be finite")
         if self.calibration is not None and self.calibration.cutoffs.shape != (n,):
             raise LibraryError("library cutoffs must be one per shape")
-        radii.setflags(write=False)
+        # Read-only copies: a library is shared (default_library() is one object), and
+        # one caller's edit of its symmetry changed every later match's angle.
+        interest = np.array(self.interest, dtype=np.float64)
+        symmetry = np.array(self.symmetry, dtype=np.int64)
+        for array in (radii, interest, symmetry):
+            array.setflags(write=False)
         object.__setattr__(self, "radii", radii)
         object.__setattr__(self, "names", tuple(self.names))
-        object.__setattr__(self, "interest", np.asarray(self.interest, dtype=np.float64))
-        object.__setattr__(self, "symmetry", np.asarray(self.symmetry, dtype=np.int64))
+        object.__setattr__(self, "interest", interest)
+        object.__setattr__(self, "symmetry", symmetry)
 
     @classmethod
     def from_radii(
