@@ -357,6 +357,12 @@ def test_a_clean_disc_is_found_in_a_frame_under_a_hundred_pixels(side):
         ({"work_size": 300.5}, "integer"),
         ({"min_median_area": 1.5}, "min_median_area at most 1"),
         ({"min_median_area": -0.2}, "min_median_area must be a non-negative number"),
+        # A ZeroDivisionError, a ValueError of nan, and a run of minutes:
+        ({"outline_radius": 0.0}, "outline_radius must be a number above 0"),
+        ({"lighting_sigma": float("inf")}, "lighting_sigma must be a number from 0 to 1"),
+        ({"lighting_sigma": 1e4}, "lighting_sigma must be a number from 0 to 1"),
+        ({"min_contrast": float("nan")}, "min_contrast must be a number from 0 to 1"),
+        ({"smooth_sigma": 1e6}, "smooth_sigma must be a number from 0 to 128"),
     ],
 )
 def test_bad_settings_are_refused(settings, message):

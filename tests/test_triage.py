@@ -140,6 +140,16 @@ def test_a_folder_that_cannot_be_listed_becomes_an_error_row(tmp_path, default_l
     assert _rows(tmp_path / "r.csv")[-1]["path"] == locked
 
 
+@pytest.mark.parametrize(
+    "settings",
+    [{"workers": float("nan")}, {"html_limit": float("inf")}, {"thumbnail_size": 2.5}, {"window": 0}],
+)
+def test_triage_counts_must_be_whole_numbers(settings):
+    # int() of nan and inf raised ValueError and OverflowError, and of 2.5 gave 2.
+    with pytest.raises(ParameterError, match="must be a whole number"):
+        TriageConfig(**settings)
+
+
 @pytest.mark.parametrize(("make", "message"), [("missing", "folder not found"), ("file", "is a file")])
 def test_find_photos_names_the_problem(tmp_path, make, message):
     target = tmp_path / "x"

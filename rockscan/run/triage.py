@@ -32,6 +32,7 @@ from __future__ import annotations
 
 import contextlib
 import math
+import numbers
 import os
 import time
 from collections.abc import Callable, Iterator
@@ -71,6 +72,13 @@ __all__ = ["TriageConfig", "TriageSummary", "interest_score", "triage_folder", "
 
 #: ``progress(done, total)``: called once before the first photo and after each row.
 Progress = Callable[[int, int], None]
+
+
+def _whole(value: object, low: int, high: int | None) -> bool:
+    """``value`` is an integer (not a bool) from ``low`` to ``high`` (None: no top)."""
+    if isinstance(value, bool) or not isinstance(value, numbers.Integral):
+        return False
+    return low <= value and (high is None or value <= high)
 
 
 @dataclass(frozen=True)
@@ -127,18 +135,19 @@ class TriageConfig:
     novelty_weight: float | None = None
 
     def __post_init__(self) -> None:
-        if self.workers is not None and (isinstance(self.workers, bool) or int(self.workers) < 1):
-            raise ParameterError(f"workers must be at least 1, got {self.workers!r}")
+        # Whole numbers: int() of nan or inf raised ValueError or OverflowError, and of 2.5 gave 2.
+        for name, low, high in (("workers", 1, None), ("html_limit", 1, None), ("window", 1, None)):
+            value = getattr(self, name)
+            if value is not None and not _whole(value, low, high):
+                raise ParameterError(f"{name} must be a whole number of at least {low}, got {value!r}")
+        if not _whole(self.thumbnail_size, 16, 1024):
+            raise ParameterError(
+                f"thumbnail_size must be a whole number of 16 to 1024 pixels, got {self.thumbnail_size!r}"
+            )
         if self.resume and self.overwrite:
             raise ParameterError("resume and overwrite exclude each other; choose one")
-        if int(self.html_limit) < 1:
-            raise ParameterError("html_limit must be at least 1")
-        if not 16 <= int(self.thumbnail_size) <= 1024:
-            raise ParameterError("thumbnail_size must be between 16 and 1024 pixels")
         if not (math.isfinite(self.refresh_s) and self.refresh_s >= 0):
             raise ParameterError("refresh_s must be a non-negative number of seconds")
-        if self.window is not None and int(self.window) < 1:
-            raise ParameterError("window must be at least 1")
         if not (math.isfinite(self.connect_timeout_s) and self.connect_timeout_s > 0):
             raise ParameterError("connect_timeout_s must be a positive number of seconds")
         if self.scheduler is not None and not str(self.scheduler).strip():

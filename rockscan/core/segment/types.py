@@ -113,6 +113,18 @@ class SegmentConfig:
             value = getattr(self, name)
             if not (isinstance(value, (int, float)) and math.isfinite(value) and value >= 0):
                 raise ParameterError(f"{name} must be a non-negative number, got {value!r}")
+        for name, value, top in (
+            ("outline_radius", self.outline_radius, self.work_size),
+            ("lighting_sigma", self.lighting_sigma, 1.0),
+            ("min_contrast", self.min_contrast, 1.0),
+            # Wider than the image they smooth, they blur it flat and take minutes.
+            ("detect_sigma", self.detect_sigma, self.detect_size / 4),
+            ("smooth_sigma", self.smooth_sigma, self.work_size / 4),
+        ):
+            low_ok = value > 0 if name == "outline_radius" else value >= 0
+            if not (isinstance(value, (int, float)) and math.isfinite(value) and low_ok and value <= top):
+                low = "above 0" if name == "outline_radius" else "from 0"
+                raise ParameterError(f"{name} must be a number {low} to {top:g}, got {value!r}")
         if not 0 < self.z_grow <= self.z_detect:
             raise ParameterError("z_grow must be positive and at most z_detect")
         if self.min_area_fraction >= 0.5 or self.min_relative_area > 1 or self.min_median_area > 1:
