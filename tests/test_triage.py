@@ -558,11 +558,14 @@ def test_without_output_the_ranked_rows_go_to_stdout(folder, reference):
         (["-o", "{tmp}/r.csv", "-j", "2", "--scheduler", "tcp://x:1"], 2, "not both"),
         (["--resume"], 2, "--resume needs the report"),
         (["-o", "{tmp}/r.csv", "-j", "0"], 2, "0 is not in the range x>=1"),
-        (["-o", "{tmp}/exists.csv"], 1, "exists: add --resume to continue it, or --overwrite"),
+        # Usage errors, as the interface has them (exit 1 is a photo that failed):
+        (["-o", "{tmp}/exists.csv"], 2, "exists: add --resume to continue it, or --overwrite"),
+        (["-o", "{tmp}/cut.html"], 2, "cut.html exists: add --resume"),
     ],
 )
 def test_usage_errors(tmp_path, args, status, message):
     (tmp_path / "exists.csv").write_text("x\n")
+    (tmp_path / "cut.html.jsonl").write_text("x\n")  # the journal a cut-short HTML run leaves
     (tmp_path / "photos").mkdir()
     args = [a.format(tmp=tmp_path) for a in args]
     result = CliRunner().invoke(main, ["triage", str(tmp_path / "photos"), *args])
@@ -571,10 +574,11 @@ def test_usage_errors(tmp_path, args, status, message):
     assert (tmp_path / "exists.csv").read_text() == "x\n"
 
 
-def test_a_missing_folder_is_one_clear_line(tmp_path):
+def test_a_missing_folder_is_a_usage_error(tmp_path):
     result = CliRunner().invoke(main, ["triage", str(tmp_path / "nope"), "-o", str(tmp_path / "r.csv")])
-    assert result.exit_code == 1
-    assert result.stderr == f"rockscan: error: {tmp_path / 'nope'}: folder not found\n"
+    assert result.exit_code == 2
+    assert f"Directory '{tmp_path / 'nope'}' does not exist" in result.stderr
+    assert not (tmp_path / "r.csv").exists()
 
 
 def test_an_empty_folder_gives_an_empty_report_and_success(tmp_path):

@@ -30,7 +30,7 @@ from rockscan.core.choices import NOVELTY_METRICS
 
 
 @main.command("triage")
-@click.argument("folder", type=PathName())
+@click.argument("folder", type=PathName(exists=True, file_okay=False))
 @click.option(
     "-o",
     "--output",
@@ -133,8 +133,9 @@ def triage(
     every few seconds; error rows go to stderr as they come.
 
     Exit status: 0 when every photo was classified, 1 when any could not be
-    (or the run could not go on), 2 for a usage error (resuming with other
-    settings included), 130 when interrupted.
+    (or the run could not go on), 2 for a usage error (a missing FOLDER, a
+    report that exists without --resume or --overwrite, resuming with other
+    settings), 130 when interrupted.
     """
     from rockscan.core.novelty import NoveltyConfig
     from rockscan.io.report import ReportSettingsError
@@ -211,12 +212,16 @@ def _check_options(
     if resume and report_path is None:
         raise click.UsageError("--resume needs the report to continue: -o REPORT")
     if report_path is not None:
-        from rockscan.io.report import report_format
+        from rockscan.io.report import journal_path, report_format
 
         try:
             report_format(report_path)
         except ParameterError as exc:
             raise click.BadParameter(str(exc), param_hint="-o/--output") from None
+        # The journal of an HTML or GeoJSON report counts: a run cut short leaves only it.
+        if not (resume or overwrite) and any(map(os.path.exists, (report_path, journal_path(report_path)))):
+            message = f"{report_path} exists: add --resume to continue it, or --overwrite to start again"
+            raise click.BadParameter(message, param_hint="-o/--output")
     _check_output(report_path, "-o/--output")
     inputs = [p for p in (report_path, library_path) if p]
     _check_output(observed_path, "--observed", suffixes=(".npz",), inputs=inputs)
