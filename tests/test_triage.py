@@ -560,7 +560,7 @@ def test_without_output_the_ranked_rows_go_to_stdout(folder, reference):
         (["-o", "{tmp}/r.csv", "-j", "0"], 2, "0 is not in the range x>=1"),
         # Usage errors, as the interface has them (exit 1 is a photo that failed):
         (["-o", "{tmp}/exists.csv"], 2, "exists: add --resume to continue it, or --overwrite"),
-        (["-o", "{tmp}/cut.html"], 2, "cut.html exists: add --resume"),
+        (["-o", "{tmp}/cut.html"], 2, "cut.html.jsonl exists: add --resume"),
     ],
 )
 def test_usage_errors(tmp_path, args, status, message):

@@ -219,8 +219,9 @@ def _check_options(
         except ParameterError as exc:
             raise click.BadParameter(str(exc), param_hint="-o/--output") from None
         # The journal of an HTML or GeoJSON report counts: a run cut short leaves only it.
-        if not (resume or overwrite) and any(map(os.path.exists, (report_path, journal_path(report_path)))):
-            message = f"{report_path} exists: add --resume to continue it, or --overwrite to start again"
+        there = [str(p) for p in (report_path, journal_path(report_path)) if os.path.exists(p)]
+        if there and not (resume or overwrite):
+            message = f"{there[0]} exists: add --resume to continue it, or --overwrite to start again"
             raise click.BadParameter(message, param_hint="-o/--output")
     _check_output(report_path, "-o/--output")
     inputs = [p for p in (report_path, library_path) if p]
