@@ -431,3 +431,10 @@ def test_family_names_keep_the_sign_and_exponent_of_their_values():
     # Sanitising once turned 1e+308 into "1e-308" and -1 into "1", the opposite of the values.
     variants = family(BASE, [("n2", (-1.0, 1e-5, 1e300))], absolute=True)
     assert [v.name for v in variants] == ["egg-n2-m1", "egg-n2-1e-05", "egg-n2-1e300"]
+
+
+@pytest.mark.parametrize("params", [SuperformulaParams(5, 5, 2, 7, 7), SuperformulaParams(3, 3, 4.5, 10, 10)])
+def test_the_fit_of_an_unturned_shape_is_at_0_degrees_as_a_match_says(params):
+    # 71.99999999999999 and 119.99999999999999: a hair below the period, reported as it.
+    fit = fit_superformula(shape_radii(params, 360), rng=0)
+    assert fit.angle_deg == pytest.approx(0.0, abs=1e-6)

@@ -261,3 +261,21 @@ def test_a_given_distance_cutoff_tests_the_distance_that_ranked_the_sample(defau
     assert not match_radii(
         sample, default_lib, MatchConfig(distance_cutoff=cutoff, metric="sensor")
     ).interesting
+
+
+def test_every_shapes_angle_follows_the_angle_convention(default_lib):
+    # Only the nearest shape's angle was folded: a circle got 69 degrees and a
+    # 3-fold shape 332 degrees for an egg turned by 30.
+    egg = turned_radii(SuperformulaParams(1, 1, 0.75, 0.75, 0.75), 30.0)
+    m = match_radii(egg, default_lib)
+    for name, angle, order in zip(default_lib.names, m.angles_deg, default_lib.symmetry, strict=True):
+        period = 360.0 / order if order else 0.0
+        assert (angle == 0.0) if not order else (0.0 <= angle < period), (name, angle, order)
+    assert m.angles_deg[default_lib.index(m.nearest)] == m.angle_deg
+
+
+def test_matches_compare_by_identity_without_raising(default_lib):
+    a = match_radii(turned_radii(PAPER_SHAPES["rounded-triangle"], 10.0), default_lib)
+    b = match_radii(turned_radii(PAPER_SHAPES["rounded-triangle"], 10.0), default_lib)
+    # Generated over the arrays, == raised "truth value of an array is ambiguous".
+    assert a == a and a != b and len({a, b}) == 2

@@ -10,6 +10,7 @@ from hypothesis import strategies as st
 from rockscan.core.errors import ParameterError
 from rockscan.core.polar import (
     contour_radii,
+    fold_angle,
     polar_angles,
     polygon_centroid_xy,
     radii_about,
@@ -185,3 +186,33 @@ def test_radii_about_a_new_centre_are_contour_radii_from_there(seed, dx, dy):
 def test_radii_about_the_origin_change_nothing():
     radii = shape_radii(SuperformulaParams(3, 3, 2, 5, 5), 90)
     np.testing.assert_allclose(radii_about(radii[None], np.zeros((1, 2)))[0], radii, rtol=1e-12)
+
+
+@pytest.mark.parametrize(
+    ("angle", "order", "folded"),
+    [
+        (130.0, 3, 10.0),
+        (-1e-6, 3, 0.0),
+        (119.99999, 3, 0.0),
+        (45.0, 0, 0.0),
+        (350.0, 1, 350.0),
+        (-30.0, 4, 60.0),
+    ],
+)
+def test_fold_angle_gives_the_smallest_equivalent_turn(angle, order, folded):
+    assert float(fold_angle(angle, order)) == pytest.approx(folded, abs=1e-9)
+
+
+def test_fold_angle_keeps_an_unknown_turn_unknown_and_folds_arrays():
+    out = fold_angle([np.nan, 250.0, 250.0], [3, 3, 0])
+    assert np.isnan(out[0]) and out[1:].tolist() == pytest.approx([10.0, 0.0])
+
+
+@pytest.mark.parametrize(
+    "radii", [np.zeros(0), np.ones((2, 360)), np.full(360, np.nan), -np.ones(360), ["a"] * 8]
+)
+@pytest.mark.parametrize("func", [symmetry_order, recenter_radii, lambda r: rotate_radii(r, 10.0)])
+def test_radii_that_are_no_outline_are_a_parameter_error(radii, func):
+    # numpy's FFT and broadcasting errors escaped, and nan or negative radii had an order.
+    with pytest.raises(ParameterError, match="radii must"):
+        func(radii)

@@ -45,6 +45,7 @@ from numpy.typing import ArrayLike, NDArray
 from rockscan.core._threads import one_blas_thread
 from rockscan.core.errors import ParameterError
 from rockscan.core.polar import (
+    fold_angle,
     polar_angles,
     polygon_area_centroids,
     recenter_radii,
@@ -648,7 +649,6 @@ def _canonical_angle(params: SuperformulaParams, angle_deg: float) -> float:
         order = symmetry_order(shape_radii(params, 360))
     except ParameterError:
         order = 1
-    period = 360.0 / order if order > 1 else 360.0
-    angle = float(angle_deg) % period
-    # A turn a hair below zero wraps to the period itself in floating point.
-    return 0.0 if angle >= period else angle
+    # A turn a hair below a period is 0, as a match reports it (fold_angle); a
+    # circle's fit keeps its turn of the ellipse's axes (order 1 here).
+    return float(fold_angle(angle_deg, max(order, 1)))

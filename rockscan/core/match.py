@@ -43,6 +43,7 @@ from rockscan.core.calibrate import cutoff_at
 from rockscan.core.choices import METRICS, RANK_METRICS
 from rockscan.core.errors import ParameterError
 from rockscan.core.information import information_face, sample_term
+from rockscan.core.polar import fold_angle
 
 if TYPE_CHECKING:
     from rockscan.core.calibrate import SensorSample
@@ -152,7 +153,7 @@ class MatchConfig:
         return "sensor" if self.metric == "auto" else self.metric
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class Match:
     """The result of matching one sample against a library.
 
@@ -182,7 +183,9 @@ class Match:
         ``w_k`` for every library shape, each at its own best rotation: the
         paper's outWeights when the sensor distance ranks (see MatchConfig).
     angles_deg : (n_shapes,) ndarray of float
-        Each shape's best rotation.
+        Each shape's best rotation, by the convention of ``angle_deg`` (the
+        smallest of its symmetry's equal turns, 0 for a circle); NaN for a shape
+        of a large library whose scan the prefilter left out.
     sensor_distance : float
         Sensor-model distance to the nearest shape (what the calibrated cutoff tests).
     cutoff_distance : float
@@ -562,9 +565,7 @@ def match_radii(radii: ArrayLike, library: Library, config: MatchConfig | None =
     w[k] = eps_best if w_metric == "eigenspace" else float(np.hypot(eps_best, residual))
     mean_w = float(w.mean())
     mscore = 1.0 - float(w.min()) / mean_w if mean_w > 0 else 1.0
-    # The distance a given cutoff tests is the one that ranked: with "auto", the
-    # eigenspace w for a clean sample, the sensor distance for a noisy one.
-    ranked = float(sensor[k]) if metric == "sensor" else float(w[k])
+    ranked = float(sensor[k]) if metric == "sensor" else float(w[k])  # what a given cutoff tests
     interesting, cutoff, decided_by = _decide(
         config, library, k, float(sensor[k]), noise, ranked, mscore, residual
     )
@@ -638,32 +639,23 @@ def _angles(
     best_shift: NDArray[np.int64],
     k: int,
 ) -> tuple[NDArray[np.float64], float]:
-    """Every shape's best angle, and the nearest shape's refined on ``angle_metric``."""
+    """Every shape's best angle, and the nearest shape's refined on ``angle_metric``.
+
+    Every angle alpha + j*360/order fits a shape of that symmetry: each is
+    reported as the smallest, so that equal photos give equal numbers; a circle
+    fits at every angle and gets 0 (:func:`rockscan.core.polar.fold_angle`).
+    """
     step_deg = 360.0 / library.face_config.n_angles
-    # Shifts are whole rays in [0, n_angles) (NaN where estimated): their angles are
-    # already in [0, 360).
-    angles = best_shift * step_deg if config.scan else np.zeros(best_shift.size)
-    angle_deg = 0.0
-    if config.scan:
-        along = dist[config.angle_metric][:, col]
-        shift_k = int(np.argmin(along))
-        shift = float(shift_k) + (_parabola_offset(along**2, shift_k) if config.refine else 0.0)
-        # Every angle alpha + j*360/order fits a shape of that symmetry: report
-        # the smallest, so that equal photos give equal numbers; a circle fits
-        # at every angle and gets 0.
-        order = int(library.symmetry[k])
-        period = 360.0 / order if order > 0 else 0.0
-        angle_deg = float(np.mod(shift * step_deg, period)) if period else 0.0
-        # A tiny negative angle (the parabola's offset of a sample at 0) comes
-        # back from the modulo as the period less a rounding: it is 0.
-        if angle_deg >= period - _ANGLE_ROUNDING:
-            angle_deg = 0.0
-        angles[k] = angle_deg
+    if not config.scan:
+        return np.zeros(best_shift.size), 0.0
+    # NaN where a shape's shift was estimated, not scanned: it stays NaN.
+    angles = fold_angle(best_shift * step_deg, library.symmetry)
+    along = dist[config.angle_metric][:, col]
+    shift_k = int(np.argmin(along))
+    shift = float(shift_k) + (_parabola_offset(along**2, shift_k) if config.refine else 0.0)
+    angle_deg = float(fold_angle(shift * step_deg, library.symmetry[k]))
+    angles[k] = angle_deg
     return angles, angle_deg
-
-
-#: Degrees under the symmetry's period within which an angle is the period itself, i.e. 0.
-_ANGLE_ROUNDING = 1e-4
 
 
 def _clean_enough(radii: NDArray[np.float64], library: Library, noise: float | None = None) -> bool:

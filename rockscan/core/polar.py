@@ -15,6 +15,7 @@ from rockscan.core.errors import ParameterError
 
 __all__ = [
     "contour_radii",
+    "fold_angle",
     "polar_angles",
     "polygon_area_centroid",
     "polygon_centroid_xy",
@@ -301,7 +302,7 @@ def recenter_radii(radii: ArrayLike) -> tuple[NDArray[np.float64], NDArray[np.fl
     offset_xy : (2,) ndarray of float
         Where the centroid lies in the original frame.
     """
-    radii = np.asarray(radii, dtype=np.float64)
+    radii = _outline_radii(radii)
     xy = radii_to_xy(radii)
     # A dense outline keeps the re-sampled radii exact to well below a pixel.
     fine = 8
@@ -330,7 +331,7 @@ def rotate_radii(radii: ArrayLike, angle_deg: float) -> NDArray[np.float64]:
         ``r(theta_i - alpha)``: exact for band-limited radii, and an exact
         circular shift for whole multiples of the ray step.
     """
-    radii = np.asarray(radii, dtype=np.float64)
+    radii = _outline_radii(radii)
     if (
         isinstance(angle_deg, bool)
         or not isinstance(angle_deg, (int, float, np.number))
@@ -365,9 +366,7 @@ def resample_radii(radii: ArrayLike, n_angles: int) -> NDArray[np.float64]:
     resampled : (n_angles,) ndarray of float
         Radii at :func:`polar_angles` ``(n_angles)``.
     """
-    radii = np.asarray(radii, dtype=np.float64)
-    if radii.ndim != 1 or radii.size < 3:
-        raise ParameterError("radii must be a 1-D array of at least 3 values")
+    radii = _outline_radii(radii)
     position = np.arange(_check_n_angles(n_angles)) * radii.size / n_angles
     return np.interp(position, np.arange(radii.size), radii, period=radii.size)
 
@@ -397,7 +396,7 @@ def symmetry_order(radii: ArrayLike, *, tol: float = 1e-4, max_order: int = 36) 
     order is read from the radii, never from the Superformula's m: with m/4
     inside the formula an odd m does not give an m-fold curve.
     """
-    radii = np.asarray(radii, dtype=np.float64)
+    radii = _outline_radii(radii)
     energy = np.abs(np.fft.rfft(radii)[1:]) ** 2
     total = energy.sum()
     if total <= (1e-9 * radii.mean()) ** 2 * radii.size**2:
@@ -407,6 +406,47 @@ def symmetry_order(radii: ArrayLike, *, tol: float = 1e-4, max_order: int = 36) 
         if energy[harmonic % k != 0].sum() <= tol * total:
             return k
     return 1
+
+
+def fold_angle(angle_deg: ArrayLike, order: ArrayLike) -> NDArray[np.float64]:
+    """The smallest of the equally good turns of a shape of rotational symmetry ``order``.
+
+    Parameters
+    ----------
+    angle_deg : float or array_like of float
+        Counter-clockwise turns, degrees.
+    order : int or array_like of int
+        Orders of symmetry (:func:`symmetry_order`; 0 for a circle).
+
+    Returns
+    -------
+    ndarray of float
+        Each turn modulo ``360/order``, in [0, 360/order); 0 for a circle, and
+        0 for a turn within ``ANGLE_ROUNDING`` of the period (a hair below 0
+        comes back from the modulo as the period less a rounding). A NaN turn
+        (not known) stays NaN, except a circle's.
+    """
+    angle = np.asarray(angle_deg, dtype=np.float64)
+    order = np.asarray(order)
+    period = np.where(order > 0, 360.0 / np.maximum(order, 1), 0.0)
+    folded = np.mod(angle, np.where(period > 0, period, 1.0))
+    folded = np.where(folded < period - ANGLE_ROUNDING, folded, 0.0)
+    return np.where(period > 0, np.where(np.isnan(angle), np.nan, folded), 0.0)
+
+
+#: Degrees under a symmetry's period within which a turn is the period itself, i.e. 0.
+ANGLE_ROUNDING = 1e-4
+
+
+def _outline_radii(radii: ArrayLike) -> NDArray[np.float64]:
+    """``radii`` of one outline as floats: a 1-D array of at least 3 finite,
+    non-negative numbers, or a ParameterError."""
+    radii = _numbers(radii, "radii")
+    if radii.ndim != 1 or radii.size < 3:
+        raise ParameterError(f"radii must be a 1-D array of at least 3 values, got shape {radii.shape}")
+    if not np.all(np.isfinite(radii)) or np.any(radii < 0):
+        raise ParameterError("radii must be finite and non-negative")
+    return radii
 
 
 def _numbers(values: ArrayLike, name: str) -> NDArray[np.float64]:
