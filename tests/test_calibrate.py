@@ -152,6 +152,9 @@ def test_the_spread_between_example_photos_counts():
     assert spread.cutoffs[1] > plain.cutoffs[1]
     with pytest.raises(ParameterError, match="one entry"):
         calibrate(radii, examples=[None])
+    # An empty array of examples: an IndexError of a modulo by zero.
+    with pytest.raises(ParameterError, match="one or more outlines"):
+        calibrate(radii, examples=[None, np.zeros((0, 360)), None])
 
 
 def test_a_one_shape_library_decides_by_its_cutoff():

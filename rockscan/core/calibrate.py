@@ -880,8 +880,13 @@ def _calibrate_iv(
             if ex is None:
                 continue
             arr = np.atleast_2d(np.asarray(ex, dtype=np.float64))
-            if arr.shape[1] != radii.shape[1] or not np.all(np.isfinite(arr)) or np.any(arr <= 0):
-                raise ParameterError(f"examples of shape {k} must be positive radii at {radii.shape[1]} rays")
+            bad = arr.ndim != 2 or arr.shape[0] == 0 or arr.shape[1] != radii.shape[1]
+            if bad or not np.all(np.isfinite(arr)) or np.any(arr <= 0):
+                # An empty array of examples divided by zero when each sample picked one.
+                rays = radii.shape[1]
+                raise ParameterError(
+                    f"examples of shape {k} must be one or more outlines of positive radii at {rays} rays"
+                )
             example_list[k] = arr
     for name, value in (("n_samples", n_samples), ("n_outside", n_outside)):
         if isinstance(value, bool) or int(value) != value or value < 4:
