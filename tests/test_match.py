@@ -236,6 +236,15 @@ def test_the_paper_preset_is_the_papers_exact_method_with_changes_on_top():
     assert MatchConfig.paper() != MatchConfig()
 
 
+@pytest.mark.parametrize("scale", [1e-310, 1e300])
+def test_scale_never_changes_a_match_at_the_ends_of_the_floats(default_lib, scale):
+    # Subnormal radii overflowed the face's scaling to inf: "elongated", not interesting.
+    radii = turned_radii(SuperformulaParams(5, 5, 2, 7, 7), 20.0)
+    a, b = match_radii(radii, default_lib), match_radii(radii * scale, default_lib)
+    assert b.nearest == a.nearest == "five-armed-star" and b.interesting
+    assert b.distance == pytest.approx(a.distance, rel=1e-6, abs=1e-9)
+
+
 @pytest.mark.parametrize(("metric", "mscore"), [("eigenspace", 1.0), ("face", 0.0)])
 def test_a_one_shape_librarys_mscore_is_fixed_by_its_distance(metric, mscore):
     # Face space of one shape is a point: every eigenspace distance is 0 (MScore 1),

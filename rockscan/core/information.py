@@ -204,7 +204,13 @@ def normalize_radii(radii: ArrayLike, *, target: float = REFERENCE_RADIUS) -> ND
     radii_normalized : (..., n_angles) ndarray of float
     """
     radii = _check_radii(radii)
-    return radii * (target / radii.mean(axis=-1, keepdims=True))
+    mean = radii.mean(axis=-1, keepdims=True)
+    if np.all(mean > 1e-300):
+        return radii * (target / mean)
+    # Subnormal radii (1e-310): target / mean overflows to inf. Scaled to their
+    # largest first, they are an outline like any other.
+    unit = radii / radii.max(axis=-1, keepdims=True)
+    return unit * (target / unit.mean(axis=-1, keepdims=True))
 
 
 def section_edges(config: FaceConfig) -> NDArray[np.float64]:
