@@ -222,6 +222,16 @@ def test_dash_refuses_a_photo_piped_in_for_its_paths(rendered):
     assert result.exit_code == 2 and "holds binary data" in result.stderr
 
 
+def test_dash_reads_paths_ended_by_nul_and_after_a_byte_order_mark(rendered):
+    star, blunt = (rendered[n][0] for n in ("six-pointed-star", "three-faced-blunt"))
+    # find -print0 was refused as "binary data (a photo itself?)"; Notepad's BOM was part of a path.
+    result = run("--json", "-", input=f"{star}\0{blunt}\0".encode())
+    assert result.exit_code == 0, result.output
+    assert [r["path"] for r in lines(result.stdout)] == [star, blunt]
+    result = run("--json", "-", input=b"\xef\xbb\xbf" + f"{star}\n".encode())
+    assert result.exit_code == 0 and [r["path"] for r in lines(result.stdout)] == [star]
+
+
 def _non_utf8_copy(source: str, folder: Path) -> bytes:
     """A copy of ``source`` under a name whose bytes are not UTF-8 (Latin-1 'roché.png')."""
     name = os.path.join(os.fsencode(folder), b"roch\xe9.png")

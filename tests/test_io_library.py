@@ -257,6 +257,9 @@ def test_library_files_hold_no_pickles(tmp_path, default_specs):
 def test_radii_files(tmp_path):
     (tmp_path / "r.txt").write_text(" ".join(["1.0"] * 10) + "\n2, 3\n")
     np.testing.assert_allclose(read_radii(tmp_path / "r.txt"), [1.0] * 10 + [2, 3])
+    # Excel's and Notepad's "CSV UTF-8" starts with a byte-order mark.
+    (tmp_path / "bom.csv").write_bytes(b"\xef\xbb\xbf" + b"1.0, 2.0, 3.0, 4.0, 5.0, 6.0, 7.0, 8.0\n")
+    np.testing.assert_allclose(read_radii(tmp_path / "bom.csv"), np.arange(1.0, 9.0))
     np.save(tmp_path / "r.npy", np.arange(1.0, 21.0))
     assert read_radii(tmp_path / "r.npy").size == 20
     (tmp_path / "bad.txt").write_text("1 2 three")

@@ -200,13 +200,19 @@ def _expand_stdin(photos: tuple[str, ...]) -> tuple[str, ...]:
     # Bytes, decoded as the file system names files: a path that is not valid in
     # the locale's encoding still names its file, and never raises.
     raw = stream.buffer.read() if hasattr(stream, "buffer") else os.fsencode(stream.read())
+    raw = raw.removeprefix(b"\xef\xbb\xbf")  # a UTF-8 byte-order mark (Notepad) is no part of a path
+    separator = b"\n"
     if b"\0" in raw:
-        raise click.BadParameter(
-            "'-' reads photo paths from standard input, one a line, but it holds binary data "
-            "(a photo itself?): give the photo's path instead",
-            param_hint="PHOTO",
-        )
-    read = [line.rstrip("\r") for line in os.fsdecode(raw).split("\n")]
+        # Paths ended by NUL (find -print0) hold no newline; a photo's bytes do.
+        if b"\n" in raw or not raw.endswith(b"\0"):
+            raise click.BadParameter(
+                "'-' reads photo paths from standard input, one a line (or each ended by NUL, as "
+                "find -print0 writes them), but it holds binary data (a photo itself?): give the "
+                "photo's path instead",
+                param_hint="PHOTO",
+            )
+        separator = b"\0"
+    read = [line.rstrip("\r") for line in os.fsdecode(raw).split(os.fsdecode(separator))]
     read = [line for line in read if line.strip()]
     if not read:
         raise click.BadParameter("'-' given but standard input holds no photo paths", param_hint="PHOTO")
