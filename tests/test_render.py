@@ -74,6 +74,13 @@ def test_truth_centroid_and_area_are_those_of_the_drawn_rock(name, angle, area):
     assert photo.truth["angle_deg"] == pytest.approx(angle % 360.0)
 
 
+def test_a_turn_of_many_whole_turns_draws_the_same_rock():
+    # The radians of 1e20 degrees swamped every ray's own angle: a rock of 3 pixels.
+    many, once = (render_photo(TEARDROP, CLEAN.with_(angle_deg=a), rng=1) for a in (1e20, 1e20 % 360.0))
+    assert many.truth["area_px"] == pytest.approx(once.truth["area_px"], rel=1e-9)
+    assert many.truth["angle_deg"] == once.truth["angle_deg"] == 1e20 % 360.0
+
+
 @pytest.mark.parametrize("angle", [0.0, 30.0, 90.0, 200.0])
 def test_angle_turns_the_rock_counter_clockwise_on_screen(angle):
     """The outline point at polar angle theta of the shape lies at theta + angle,

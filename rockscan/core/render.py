@@ -460,7 +460,8 @@ class _Scene:
             radii = radii * np.maximum(1.0 + rng.normal(0.0, cfg.outline_noise, radii.size), 0.05)
         unit_area = 0.5 * float(np.mean(radii**2)) * 2.0 * math.pi
         scale = math.sqrt(area_fraction * cfg.rows * cfg.cols / unit_area)
-        angle = float(rng.uniform(0.0, 360.0)) if angle_deg is None else float(angle_deg)
+        # Turned into [0, 360) first: the radians of 1e20 degrees swamp every ray's own angle.
+        angle = float(rng.uniform(0.0, 360.0)) if angle_deg is None else float(angle_deg) % 360.0
         x = scale * radii * np.cos(theta + math.radians(angle))
         y = scale * radii * np.sin(theta + math.radians(angle))
         margin = 2.0 + 3.0 * cfg.blur
