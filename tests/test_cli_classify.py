@@ -666,3 +666,16 @@ def test_verbose_logs_debug_lines_and_quiet_silences_info(rendered, tmp_path):
     plot = tmp_path / "p.png"
     before = CliRunner().invoke(main, ["-q", "classify", "--plot", str(plot), path])
     assert before.exit_code == 0 and before.stderr == "" and plot.is_file()
+
+
+def test_a_file_name_with_a_newline_or_a_tab_keeps_the_table_in_line(rendered, tmp_path):
+    source = Path(rendered["teardrop"][0]).read_bytes()
+    names = ["two\nlines.png", "a\ttab.png", "plain.png"]
+    for name in names:
+        (tmp_path / name).write_bytes(source)
+    result = run(*(str(tmp_path / n) for n in names), env={"COLUMNS": "200"})
+    assert result.exit_code == 0, result.output
+    header, *rows = result.stdout.splitlines()
+    assert len(rows) == 3 and "two\\nlines.png" in rows[0] and "a\\ttab.png" in rows[1]
+    # Every row's rock index under the header's "rock" (right-aligned, 4 wide).
+    assert {row.index(" 0  ") + 1 for row in rows} == {header.index("rock") + 3}

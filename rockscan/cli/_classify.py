@@ -303,7 +303,7 @@ class _Table:
 
     def __init__(self, photos: tuple[str, ...], names: tuple[str, ...], width: int) -> None:
         longest = max([len("nearest"), *(len(n) for n in names)])
-        longest_photo = max([len("photo"), *(len(p) for p in photos)])
+        longest_photo = max([len("photo"), *(len(_printable(p)) for p in photos)])
         room = width - self._FIXED - self._CENTROID
         self.centroid = room >= self._MIN_PHOTO + 2 * longest
         if not self.centroid:
@@ -323,7 +323,7 @@ class _Table:
         m = rock.match
         cx, cy = rock.centroid_xy
         return (
-            f"{_cut_middle(photo, self.photo_w):<{self.photo_w}} {rock.index:>4}  "
+            f"{_cut_middle(_printable(photo), self.photo_w):<{self.photo_w}} {rock.index:>4}  "
             f"{_cut_middle(m.match or '-', self.name_w):<{self.name_w}} "
             f"{_cut_middle(m.nearest, self.name_w):<{self.name_w}} "
             f"{m.mscore:>6.3f} {m.distance:>9.4g} {m.angle_deg:>6.1f}"
@@ -331,7 +331,15 @@ class _Table:
         )
 
     def error_row(self, photo: str, error: str) -> str:
-        return f"{_cut_middle(photo, self.photo_w):<{self.photo_w}} error: {error}"
+        return f"{_cut_middle(_printable(photo), self.photo_w):<{self.photo_w}} error: {_printable(error)}"
+
+
+def _printable(text: str) -> str:
+    """``text`` with its control characters escaped (``\\n``, ``\\t``, ``\\x07``): a file
+    name may hold a newline or a tab, which broke the table's rows and columns."""
+    if text.isprintable():
+        return text
+    return "".join(ch if ch.isprintable() or ch == " " else repr(ch)[1:-1] for ch in text)
 
 
 def _cut_middle(text: str, width: int) -> str:
