@@ -565,3 +565,14 @@ def test_decoder_warnings_do_not_escape(tmp_path):
     path.write_bytes(buf.getvalue())
     image = read_image(path)
     assert image.pixels.shape == pixels.shape
+
+
+def test_a_tiff_of_several_pages_reads_its_first_and_says_so(tmp_path, caplog):
+    first, second = np.full((20, 30), 40, np.uint8), np.full((20, 30), 200, np.uint8)
+    path = tmp_path / "stack.tif"
+    Image.fromarray(first).save(path, save_all=True, append_images=[Image.fromarray(second)])
+    with caplog.at_level("WARNING", logger="rockscan"):
+        image = read_image(path)
+    np.testing.assert_array_equal(image.pixels, first)
+    # Classified without a word before, as if the file held one photo.
+    assert "a TIFF of 2 pages; reading its first" in caplog.text

@@ -18,6 +18,7 @@ both axes, so one number, ``scale = k``, maps every position back.
 from __future__ import annotations
 
 import contextlib
+import logging
 import os
 import struct
 import sys
@@ -33,6 +34,8 @@ from numpy.typing import NDArray
 
 from rockscan.core.errors import ImageReadError, ParameterError
 from rockscan.core.errors import first_line as _first_line
+
+_log = logging.getLogger(__name__)
 
 if TYPE_CHECKING:
     from PIL import Image
@@ -192,6 +195,7 @@ def _decode(
         with _quiet_decoders(), _pillow_limits(), open(path, "rb") as fh, Image.open(fh) as im:
             if im.format not in _FORMATS:
                 raise ImageReadError(f"{path}: {im.format} images are not supported (use {_SUPPORTED})")
+            pages = int(getattr(im, "n_frames", 1)) if im.format == "TIFF" else 1
             deep_color = _is_deep_color(im)
             bit_depth = 16 if deep_color or im.mode.startswith("I") else 8
             full_cols, full_rows = im.size
@@ -237,6 +241,10 @@ def _decode(
         raise ImageReadError(f"{path}: not enough memory to decode this photo") from None
     except _DECODE_ERRORS as exc:
         raise ImageReadError(f"{path}: image is truncated or corrupt ({_first_line(exc)})") from None
+    if pages > 1:
+        # A stack (a microscope's focus series): its first page, said aloud (and not
+        # while the decoders' own messages are kept off standard error).
+        _log.warning("%s: a TIFF of %d pages; reading its first", path, pages)
     return pixels, factor, decoded, orientation, (full_rows, full_cols), bit_depth, deep_color
 
 
