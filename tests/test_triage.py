@@ -32,6 +32,7 @@ from rockscan.core.render import RenderConfig, render_photo
 from rockscan.core.superformula import SuperformulaParams
 from rockscan.io import default_spec_path, load_library, read_spec
 from rockscan.io.folders import find_photos
+from rockscan.io.library import read_pending
 from rockscan.io.report import CSV_COLUMNS, ROW_KEYS, ReportJournal, rank_key, read_provenance, read_rows
 from rockscan.run.backends import _ProcessBackend, _run_backend, held_interrupts
 from rockscan.run.photo import PhotoOutcome
@@ -697,3 +698,30 @@ def test_novel_rocks_are_flagged_once_added_and_remembered(tmp_path):
     assert again.exit_code == 0
     assert not any(r["novel"] for r in _rows(tmp_path / "again.csv"))
     assert len(photos) == 6 and math.isfinite(runs[0][0]["novelty"])
+
+
+def test_novel_shapes_a_killed_run_did_not_save_are_kept_and_not_flagged_again(tmp_path, monkeypatch):
+    shapes = [
+        ("four-lobe", SuperformulaParams(4, 4, 0.6, 1, 1)),
+        ("eight-lobe", SuperformulaParams(8, 8, 6, 10, 10)),
+    ]
+    _render_folder(tmp_path / "photos", 4, seed=5, shapes=shapes)
+    observed, report = tmp_path / "observed.npz", tmp_path / "r.jsonl"
+    args = ["triage", str(tmp_path / "photos"), "-o", str(report), "-j", "1", "--observed", str(observed)]
+    # The run is killed before its library is written: saving never happens.
+    monkeypatch.setattr("rockscan.run.triage._TriageRun.save_observed", lambda self: None)
+    assert CliRunner().invoke(main, args).exit_code == 0
+    assert not observed.exists()
+    pending = tmp_path / "observed.npz.pending"
+    assert [name for name, _ in read_pending(pending)] == ["seen-000-four-lobe", "seen-003-eight-lobe"]
+    # Resumed from scratch of the same photos, those shapes were novel again (each twice in the report).
+    monkeypatch.undo()
+    report.unlink()
+    result = CliRunner().invoke(main, args)
+    assert result.exit_code == 0, result.output
+    assert not any(r["novel"] for r in _rows(report))
+    assert load_library(observed).names[-2:] == ("seen-000-four-lobe", "seen-003-eight-lobe")
+    assert not pending.exists()
+    # A torn last line (a write cut short) is dropped.
+    pending.write_bytes(b'{"name": "seen-x", "radii": [1.0, 1.')
+    assert read_pending(pending) == []

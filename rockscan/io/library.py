@@ -376,3 +376,51 @@ def _library_names(meta: dict[str, object], path: Path) -> tuple[str, ...]:
         if not isinstance(name, str) or not NAME_PATTERN.match(name):
             raise LibraryError(f"{path}: shape name {name!r} must match [a-z0-9-]+")
     return tuple(names)
+
+
+def append_pending(path: str | os.PathLike[str] | None, name: str, radii: NDArray[np.float64]) -> None:
+    """Append one shape an observed library has gained to its pending file.
+
+    One JSON line (``{"name": ..., "radii": [...]}``, the radii exact) in one
+    unbuffered write: a run killed before it writes the library whole keeps the
+    shapes it found, and a torn last line is dropped when read.
+
+    Parameters
+    ----------
+    path : path-like or None
+        The pending file (None: nothing to keep).
+    name : str
+    radii : (n_angles,) ndarray of float
+
+    Raises
+    ------
+    WriteError
+        If the file cannot be written.
+    """
+    if path is None:
+        return
+    line = json.dumps({"name": name, "radii": [float(r) for r in radii]}) + "\n"
+    try:
+        with open(path, "ab", buffering=0) as fh:
+            fh.write(line.encode("utf-8"))
+    except OSError as exc:
+        raise WriteError(f"{path}: cannot write the observed shapes ({exc.strerror or exc})") from None
+
+
+def read_pending(path: str | os.PathLike[str] | None) -> list[tuple[str, NDArray[np.float64]]]:
+    """The shapes of a pending file, in the order they were found (see :func:`append_pending`).
+
+    A missing file is no shapes; a line that is not a whole record (a write cut
+    short) is skipped.
+    """
+    if path is None or not os.path.exists(path):
+        return []
+    shapes = []
+    with open(path, "rb") as fh:
+        for line in fh:
+            try:
+                record = json.loads(line)
+                shapes.append((str(record["name"]), np.asarray(record["radii"], dtype=np.float64)))
+            except (ValueError, KeyError, TypeError):
+                continue
+    return shapes

@@ -43,6 +43,7 @@ from typing import TYPE_CHECKING, Any
 from rockscan.core.errors import ParameterError, RockscanError
 from rockscan.core.novelty import NoveltyConfig, ObservedShapes, observed_name
 from rockscan.io.folders import PhotoListing, find_photos
+from rockscan.io.library import append_pending, read_pending
 from rockscan.io.report import (
     ROW_KEYS,
     THUMBNAIL_KEY,
@@ -478,6 +479,7 @@ class _TriageRun:
         self.report, self.title, self.library, self.config = report, _title(folder), library, config
         self.progress, self.on_error = progress, on_error
         self.observed_path = Path(observed) if observed is not None else None
+        self.observed_dirty = False
         self.novelty = self._observed_shapes()
         self.novelty_weight = novelty_weight(library, config)
         provenance = report_provenance(library, config, self.novelty, folder=folder)
@@ -490,8 +492,18 @@ class _TriageRun:
         self.last_refresh = self.last_save = time.monotonic()
         self.refresh_every = float(config.refresh_s)
         # A new observed library is written even if no rock turns out novel.
-        self.observed_dirty = self.observed_path is not None and not self.observed_path.exists()
+        self.observed_dirty |= self.observed_path is not None and not self.observed_path.exists()
         self.names = set(self.novelty.library.names) if self.novelty is not None else set()
+
+    @property
+    def pending_path(self) -> Path | None:
+        """Where each novel shape is appended as it is found, until the observed
+        library is next written: a run killed in between loses none of them."""
+        return (
+            None
+            if self.observed_path is None
+            else self.observed_path.with_name(self.observed_path.name + ".pending")
+        )
 
     def _observed_shapes(self) -> ObservedShapes | None:
         from rockscan.io import load_library
@@ -499,10 +511,19 @@ class _TriageRun:
         if self.observed_path is None:
             return None
         if self.observed_path.exists():
-            return ObservedShapes.from_file(
+            novelty = ObservedShapes.from_file(
                 load_library(self.observed_path), self.library, self.config.novelty
             )
-        return ObservedShapes.from_library(self.library, self.config.novelty)
+        else:
+            novelty = ObservedShapes.from_library(self.library, self.config.novelty)
+        # The shapes a killed run found after its last write of the library.
+        known = set(novelty.library.names)
+        for name, radii in read_pending(self.pending_path):
+            if name not in known:
+                novelty = novelty.with_shape(name, radii)
+                known.add(name)
+                self.observed_dirty = True
+        return novelty
 
     def start(self) -> None:
         if self.html:
@@ -516,6 +537,8 @@ class _TriageRun:
         if self.novelty is not None and self.observed_path is not None and self.observed_dirty:
             save_library(self.novelty.library, self.observed_path)
             self.observed_dirty = False
+            # Written whole (atomically), the library holds every pending shape.
+            self.pending_path.unlink(missing_ok=True)
             self.last_save = time.monotonic()
 
     def row_of(self, outcome: PhotoOutcome) -> dict[str, Any]:
@@ -538,6 +561,7 @@ class _TriageRun:
                 name = observed_name(stem, self.names)
                 self.names.add(name)
                 self.novelty = self.novelty.with_shape(name, outcome.radii)
+                append_pending(self.pending_path, name, outcome.radii)
                 self.observed_dirty = True
                 self.n_novel += 1
         if self.html:
