@@ -576,3 +576,11 @@ def test_a_tiff_of_several_pages_reads_its_first_and_says_so(tmp_path, caplog):
     np.testing.assert_array_equal(image.pixels, first)
     # Classified without a word before, as if the file held one photo.
     assert "a TIFF of 2 pages; reading its first" in caplog.text
+
+
+def test_an_empty_path_and_a_fractional_size_say_what_is_wrong():
+    # Path("") is the current folder: ".: is a folder" named no mistake of the caller's.
+    with pytest.raises(ImageReadError, match="an empty path"):
+        read_image("")
+    with pytest.raises(ParameterError, match="whole number of pixels"):
+        read_image(__file__, max_side=2.5)

@@ -138,7 +138,7 @@ def read_image(path: str | os.PathLike[str], *, max_side: int | None = None) -> 
         exceed ``MAX_DEEP_BYTES``, or holds non-finite values;
         the message is one line that starts with the path.
     ParameterError
-        If ``max_side`` is not a positive number.
+        If ``max_side`` is not a whole number of at least 1.
 
     Notes
     -----
@@ -153,12 +153,15 @@ def read_image(path: str | os.PathLike[str], *, max_side: int | None = None) -> 
     Decoders' own messages about a broken file are kept off standard error.
     """
 
+    if isinstance(path, str) and not path.strip():
+        # Path("") is the current folder: "an empty path" says what went wrong.
+        raise ImageReadError("an empty path; give a photo's path")
     path = Path(path)
     _check_file(path)
     if max_side is not None and (
         isinstance(max_side, bool) or not isinstance(max_side, (int, np.integer)) or max_side < 1
     ):
-        raise ParameterError(f"max_side must be a positive number of pixels, got {max_side!r}")
+        raise ParameterError(f"max_side must be a whole number of pixels, at least 1; got {max_side!r}")
     pixels, factor, decoded, orientation, (full_rows, full_cols), bit_depth, deep_color = _decode(
         path, max_side
     )
