@@ -6,6 +6,7 @@ import json
 import os
 import shutil
 import sys
+import unicodedata
 from typing import Any
 
 import click
@@ -336,10 +337,10 @@ class _Table:
 
 def _printable(text: str) -> str:
     """``text`` with its control characters escaped (``\\n``, ``\\t``, ``\\x07``): a file
-    name may hold a newline or a tab, which broke the table's rows and columns."""
-    if text.isprintable():
-        return text
-    return "".join(ch if ch.isprintable() or ch == " " else repr(ch)[1:-1] for ch in text)
+    name may hold a newline or a tab, which broke the table's rows and columns.
+    (A byte that is not UTF-8, decoded as a lone surrogate, is left to the
+    output's own escape, as standard error prints it.)"""
+    return "".join(repr(ch)[1:-1] if unicodedata.category(ch) == "Cc" else ch for ch in text)
 
 
 def _cut_middle(text: str, width: int) -> str:
