@@ -438,3 +438,12 @@ def test_the_fit_of_an_unturned_shape_is_at_0_degrees_as_a_match_says(params):
     # 71.99999999999999 and 119.99999999999999: a hair below the period, reported as it.
     fit = fit_superformula(shape_radii(params, 360), rng=0)
     assert fit.angle_deg == pytest.approx(0.0, abs=1e-6)
+
+
+@pytest.mark.parametrize(("vary", "absolute"), [(("m", (0.9, 1.1)), False), (("m1", (3.5,)), True)])
+def test_family_refuses_an_m_that_would_not_close_the_curve(vary, absolute):
+    # m = 3.6 and 4.4 were written: curves with a step at theta = 0, built and matched as they were.
+    base = ShapeSpec("blob", SuperformulaParams(4, 4, 2, 5, 5))
+    with pytest.raises(SpecError, match="would not close the curve: m1 and m2 are whole numbers"):
+        family(base, [vary], absolute=absolute)
+    assert [v.params.m1 for v in family(base, [("m", (3.0, 5.0))], absolute=True)] == [3.0, 5.0]

@@ -130,7 +130,8 @@ def family(
     SpecError
         If the base is given by photos, a parameter is varied twice (in
         combinations), there would be
-        more than ``MAX_VARIANTS`` variants, two names collide, or a variant
+        more than ``MAX_VARIANTS`` variants, two names collide, a variant's m1
+        or m2 is not a whole number (its curve would not close), or a variant
         is not a closed shape that encloses its centroid.
     """
     if base.params is None:
@@ -167,6 +168,12 @@ def family(
                 values[key] = v if absolute else round_significant(base_values[key] * v, 12)
         if values == base_values:
             continue
+        if broken := [k for k in ("m1", "m2") if values[k] != round(values[k])]:
+            # A curve of m = 3.6 does not close: a step at theta = 0, drawn and matched as it is.
+            raise SpecError(
+                f"{broken[0]} = {values[broken[0]]:g} would not close the curve: m1 and m2 are whole "
+                "numbers; vary them by value (e.g. --vary m=3,4,5 --absolute)"
+            )
         label = "-".join(f"{name}-{_value_label(v)}" for name, v in combo)
         variant_name = sanitize_name(f"{base.name}-{label}")
         if variant_name in seen:
