@@ -131,6 +131,20 @@ def test_fit_appends_to_a_spec_and_keeps_names_unique(runner, photos, tmp_path):
     assert read_spec(spec)[1].params == STAR5
 
 
+def test_fit_append_keeps_the_specs_comments(runner, photos, tmp_path):
+    # The spec was rewritten from its shapes: a hand-made library lost its notes.
+    spec = tmp_path / "lib.toml"
+    written = "# my rocks: keep these notes\n" + write_spec([ShapeSpec("star", STAR5)]).replace(
+        'name = "star"', 'name = "star"  # the one from site 4'
+    )
+    spec.write_text(written)
+    result = runner.invoke(main, ["library", "fit", next(iter(photos)), "-o", str(spec), "--append"])
+    assert result.exit_code == 0, result.output
+    assert spec.read_text().startswith(written.rstrip("\n") + "\n\n[[shape]]")
+    names = [shape.name for shape in read_spec(spec)]
+    assert len(names) == 2 and names[0] == "star"
+
+
 def test_fit_plot_draws_outline_and_curve(runner, photos, tmp_path):
     png = tmp_path / "fits.png"
     result = runner.invoke(

@@ -123,8 +123,15 @@ def library_fit(
                 file=report,
             )
     if shapes:
-        if output is not None:
-            write_spec([*existing, *shapes], output)
+        if output is not None and existing:
+            # Appended as text: the spec's own comments and layout stay as written.
+            from rockscan.io.atomic import write_bytes_atomic
+
+            before = Path(output).read_bytes().rstrip(b"\n") + b"\n\n"
+            write_bytes_atomic(output, before + write_spec(shapes).encode("utf-8"), what="spec")
+            click.echo(f"wrote {output}: {len(shapes)} fitted shapes", err=as_json)
+        elif output is not None:
+            write_spec(shapes, output)
             click.echo(f"wrote {output}: {len(shapes)} fitted shapes", err=as_json)
         elif not as_json:
             click.echo(write_spec(shapes), nl=False)
