@@ -218,3 +218,19 @@ def test_an_output_folder_that_cannot_be_written_is_refused_before_the_run(
     )
     assert refused(result, "cannot write in folder")
     assert not (tmp_path / "r.csv").exists()
+
+
+@pytest.mark.parametrize(
+    "args",
+    [
+        ["classify", "{photo}", "--plot", "{tmp}/c.txt"],
+        ["library", "fit", "{photo}", "-o", "{tmp}/q.toml", "--plot", "{tmp}/q.txt"],
+        ["library", "show", "--plot", "{tmp}/s.txt"],
+    ],
+)
+def test_a_plot_of_a_format_matplotlib_cannot_draw_is_refused_before_the_work(runner, photo, tmp_path, args):
+    # The work was done (a spec written), then "cannot write the plot" with exit 1.
+    before = sorted(p.name for p in tmp_path.iterdir())
+    result = runner.invoke(main, [a.format(photo=photo, tmp=tmp_path) for a in args])
+    assert refused(result, "cannot draw a .txt file")
+    assert sorted(p.name for p in tmp_path.iterdir()) == before

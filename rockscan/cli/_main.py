@@ -138,6 +138,8 @@ def _check_output(
     ``--overwrite`` (``overwrite`` not None), a file that exists."""
     if path is None:
         return
+    if hint == "--plot":
+        _check_plot_format(path)
     if suffixes and not path.lower().endswith(suffixes):
         raise click.BadParameter(f"{path!r} must end in {' or '.join(suffixes)}", param_hint=hint)
     folder = os.path.dirname(os.path.abspath(path))
@@ -157,6 +159,19 @@ def _check_output(
         if overwrite is False:
             message = f"{path} exists; give --overwrite to replace, or another name"
             raise click.BadParameter(message, param_hint=hint)
+
+
+def _check_plot_format(path: str) -> None:
+    """A plot's file ending must be a format matplotlib draws (none: PNG); found
+    only when the figure was saved, it failed the run after its work, exit 1."""
+    suffix = os.path.splitext(path)[1].lower().lstrip(".")
+    if not suffix:
+        return
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+
+    if suffix not in FigureCanvasAgg.get_supported_filetypes():
+        message = f"cannot draw a .{suffix} file; name a .png (or .pdf, .svg, .jpg)"
+        raise click.BadParameter(message, param_hint="--plot")
 
 
 def _fail(message: str, status: int = 1) -> None:
