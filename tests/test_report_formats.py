@@ -75,10 +75,12 @@ def test_geojson_is_a_feature_collection_of_valid_polygons_with_the_classify_key
         assert feature["type"] == "Feature" and geometry["type"] == "Polygon"
         (ring,) = geometry["coordinates"]
         assert len(ring) >= 4 and ring[0] == ring[-1]
-        # The outline's own area is the rock's area (2%), and its winding is one way round.
-        assert abs(abs(_shoelace(ring)) - props["area_px"]) <= 0.02 * props["area_px"]
+        # The outline's own area is the rock's area (2%), the ring counter-clockwise in its
+        # own x, y numbers (RFC 7946's right-hand rule): the outline's points in reverse.
+        assert _shoelace(ring) > 0
+        assert abs(_shoelace(ring) - props["area_px"]) <= 0.02 * props["area_px"]
         record = printed[(props["path"], props["index"])]
-        assert ring[:-1] == record["outline"]
+        assert ring[:-1] == record["outline"][::-1]
         assert {k: props[k] for k in record if k != "outline"} == {
             k: v for k, v in record.items() if k != "outline"
         }

@@ -35,14 +35,14 @@ def polygon(outline: list[list[float]] | None) -> dict[str, Any] | None:
     -------
     dict or None
         ``{"type": "Polygon", "coordinates": [ring]}``: one linear ring, its
-        first position repeated at the end (RFC 7946 3.1.6). The outline's
-        own winding is kept (counter-clockwise on screen; with y pointing
-        down, the exterior ring is then clockwise in x, y, which RFC 7946
-        readers must accept).
+        first position repeated at the end (RFC 7946 3.1.6), counter-clockwise
+        in its own x, y numbers as the right-hand rule of RFC 7946 asks of a
+        writer: the outline runs counter-clockwise on screen, where y points
+        up, so with y = row its points are given in reverse.
     """
     if not outline or len(outline) < 3:
         return None
-    ring = [[float(x), float(y)] for x, y in outline]
+    ring = [[float(x), float(y)] for x, y in reversed(outline)]
     if ring[0] != ring[-1]:
         ring.append(list(ring[0]))
     return {"type": "Polygon", "coordinates": [ring]}
