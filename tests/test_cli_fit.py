@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 import math
+import os
 import tomllib
 
 import numpy as np
@@ -13,7 +14,7 @@ from conftest import PAPER_SHAPES
 from PIL import Image
 
 from rockscan.cli import main
-from rockscan.core.library import Library, ShapeSpec
+from rockscan.core.library import Library, ShapeSpec, sanitize_name
 from rockscan.core.polar import polar_angles, recenter_radii
 from rockscan.core.render import render_photo
 from rockscan.core.superformula import SuperformulaParams, shape_radii
@@ -277,3 +278,12 @@ def test_family_refuses_names_the_spec_already_has(runner, paper_spec, tmp_path)
     again = runner.invoke(main, ["library", "family", str(once), "star", "--vary", "n1=1.1"])
     assert again.exit_code == 1
     assert "already has shapes named star-n1-1-1" in again.stderr
+
+
+def test_fit_warns_when_two_photos_give_one_shape(runner, photos, tmp_path):
+    # Written without a word, the spec was then refused by library build.
+    photo = next(iter(photos))
+    result = runner.invoke(main, ["library", "fit", photo, photo, "-o", str(tmp_path / "s.toml")])
+    assert result.exit_code == 0
+    stem = sanitize_name(os.path.splitext(os.path.basename(photo))[0])
+    assert f"{stem}-2 fits the same shape as {stem}; library build refuses the two together" in result.stderr

@@ -39,7 +39,8 @@ from rockscan.cli._main import (
     "radii_path",
     type=PathName(dir_okay=False),
     default=None,
-    help="Radii file: numbers at equal angles from theta=0 (text or .npy).",
+    help="Radii file: numbers at equal angles from theta=0, measured from the outline's area "
+    "centroid (text or .npy).",
 )
 @click.option(
     "--rotate", type=Number(), default=0.0, show_default=True, help="Turn the outline first (degrees, CCW)."

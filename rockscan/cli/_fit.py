@@ -11,7 +11,7 @@ from typing import Any
 import click
 
 from rockscan.cli._library import library
-from rockscan.cli._main import PathName, _check_output, _errors
+from rockscan.cli._main import PathName, _check_output, _errors, log
 
 #: Rays an outline is measured at (the library's default).
 _N_ANGLES = 360
@@ -104,6 +104,9 @@ def library_fit(
                 click.echo(f"rockscan: error: {message}", err=True)
             continue
         taken.add(name)
+        if twin := next((s.name for s in (*existing, *shapes) if s.params == fit.params), None):
+            # Two copies of one photo: library build refuses one outline given twice.
+            log.warning("%s fits the same shape as %s; library build refuses the two together", name, twin)
         shapes.append(ShapeSpec(name, fit.params))
         drawn.append((name, radii, fit))
         if as_json:
