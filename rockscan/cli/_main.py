@@ -167,9 +167,9 @@ def _check_plot_format(path: str) -> None:
     suffix = os.path.splitext(path)[1].lower().lstrip(".")
     if not suffix:
         return
-    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from rockscan.draw.plot import figure_formats
 
-    if suffix not in FigureCanvasAgg.get_supported_filetypes():
+    if suffix not in figure_formats():
         message = f"cannot draw a .{suffix} file; name a .png (or .pdf, .svg, .jpg)"
         raise click.BadParameter(message, param_hint="--plot")
 

@@ -320,6 +320,14 @@ def _draw_verdict(fig: Any, rock: RockResult, tests: list[DecisionTest]) -> None
     fig.text(0.5, 0.932, why, ha="center", va="center", fontsize=9.5, color="#1c1c1e")
 
 
+def figure_formats() -> frozenset[str]:
+    """File endings (without the dot) :func:`save_figure` can write: matplotlib's
+    own, so that a command checks a plot's name before its work."""
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+
+    return frozenset(FigureCanvasAgg.get_supported_filetypes())
+
+
 def save_figure(fig: Figure, path: str | os.PathLike[str], *, dpi: int = 100) -> None:
     """Write a figure atomically in the format its suffix names (PNG by default).
 
