@@ -451,8 +451,16 @@ def test_plot_says_what_it_wrote_and_refuses_to_replace_without_overwrite(render
     assert quiet.exit_code == 0 and quiet.stderr == ""
 
 
-def test_plot_that_cannot_be_written_is_an_error_but_json_goes_on(rendered, tmp_path):
-    target = tmp_path / "plot.unknown-format"
+def test_plot_that_cannot_be_written_is_an_error_but_json_goes_on(rendered, tmp_path, monkeypatch):
+    # A disk that fills while drawing: a name of a format matplotlib cannot draw is
+    # refused before the work (tests/test_cli_outputs.py).
+    from rockscan.core.errors import WriteError
+
+    def full(figure, path, **kwargs):
+        raise WriteError(f"{path}: cannot write the plot (No space left on device)")
+
+    monkeypatch.setattr("rockscan.draw.plot.save_figure", full)
+    target = tmp_path / "plot.png"
     result = run("--json", "--plot", str(target), rendered["teardrop"][0])
     assert result.exit_code == 1
     assert lines(result.stdout)[0]["nearest"] == "teardrop"
