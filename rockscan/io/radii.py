@@ -34,9 +34,9 @@ def read_radii(path: str | os.PathLike[str]) -> NDArray[np.float64]:
         if path.suffix.lower() == ".npy":
             values = np.load(path, allow_pickle=False)
         else:
-            rows = [
-                line.replace(",", " ").split() for line in path.read_text(encoding="utf-8-sig").splitlines()
-            ]
+            # utf-8-sig: a byte-order mark (Excel's "CSV UTF-8") is no part of the first number.
+            text = path.read_text(encoding="utf-8-sig")
+            rows = [line.replace(",", " ").split() for line in text.splitlines()]
             rows = [row for row in rows if row]
             if len(rows) > 1 and len({len(row) for row in rows}) == 1 and len(rows[0]) > 1:
                 # A table (rows of one length, more than one column) would be read

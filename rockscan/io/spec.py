@@ -10,6 +10,7 @@ import math
 import os
 import re
 import tomllib
+from collections import Counter
 from collections.abc import Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING
@@ -181,10 +182,10 @@ def write_spec(shapes: Sequence[ShapeSpec], path: str | os.PathLike[str] | None 
         For no shapes, a name used twice, or an image path that is not valid
         UTF-8 (TOML's encoding): specs :func:`read_spec` would refuse.
     """
-    names = [shape.name for shape in shapes]
-    if not names:
+    counts = Counter(shape.name for shape in shapes)
+    if not counts:
         raise SpecError("a spec needs at least one shape")
-    if twice := sorted({name for name in names if names.count(name) > 1}):
+    if twice := sorted(name for name, count in counts.items() if count > 1):
         raise SpecError(f"shape names used twice: {', '.join(twice)}")
     folder = os.path.dirname(os.path.abspath(path)) if path is not None else None
     lines: list[str] = []
