@@ -250,7 +250,7 @@ def _plot_targets(
     whatever is given, a plot that would replace one of the command's ``inputs``
     (a photo, the library), which ``--overwrite`` once drew over before reading it.
     """
-    _check_output(plot_path, "--plot")  # its folder; the plots' own names are checked below
+    _check_output(plot_path, "--plot", plot=True)  # folder and format; each plot's name below
     if len(photos) == 1:
         targets = {0: plot_path}
     else:

@@ -84,7 +84,7 @@ def library_fit(
     if append and output is None:
         raise click.UsageError("--append needs -o SPEC (the spec to add the shapes to)")
     _check_output(output, "--output", suffixes=(".toml",), inputs=inputs)
-    _check_output(plot_path, "--plot", inputs=inputs, overwrite=overwrite)
+    _check_output(plot_path, "--plot", inputs=inputs, overwrite=overwrite, plot=True)
     existing = read_spec(output) if append and os.path.exists(output or "") else []
     taken = {shape.name for shape in existing}
     report = sys.stdout if output is not None or as_json else sys.stderr

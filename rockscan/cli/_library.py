@@ -156,7 +156,7 @@ def library_show(lib: str, plot_path: str | None, overwrite: bool, as_json: bool
 
     if plot_path == "":
         plot_path = os.path.splitext(os.path.basename(lib))[0] + ".png"
-    _check_output(plot_path, "--plot", inputs=(lib,), overwrite=overwrite)
+    _check_output(plot_path, "--plot", inputs=(lib,), overwrite=overwrite, plot=True)
     library_obj = _load_library(lib)
     face = library_obj.face_config
     cutoffs = library_obj.cutoffs

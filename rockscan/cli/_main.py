@@ -130,15 +130,17 @@ def _check_output(
     suffixes: tuple[str, ...] = (),
     inputs: Iterable[str] = (),
     overwrite: bool | None = None,
+    plot: bool = False,
 ) -> None:
     """Refuse, as a usage error and before any work, an output that would lose what
     the user has: a name without the file kind it writes (``suffixes``), a folder
     that is missing, one of the command's own ``inputs`` (a spec written over by
-    its library, a photo by its plot), or, where the command offers
+    its library, a photo by its plot), a folder it cannot write in, a figure
+    (``plot``) of a format matplotlib cannot draw, or, where the command offers
     ``--overwrite`` (``overwrite`` not None), a file that exists."""
     if path is None:
         return
-    if hint == "--plot":
+    if plot:
         _check_plot_format(path)
     if suffixes and not path.lower().endswith(suffixes):
         raise click.BadParameter(f"{path!r} must end in {' or '.join(suffixes)}", param_hint=hint)

@@ -302,7 +302,7 @@ def recenter_radii(radii: ArrayLike) -> tuple[NDArray[np.float64], NDArray[np.fl
     offset_xy : (2,) ndarray of float
         Where the centroid lies in the original frame.
     """
-    radii = _outline_radii(radii)
+    radii = _checked_radii(radii)
     xy = radii_to_xy(radii)
     # A dense outline keeps the re-sampled radii exact to well below a pixel.
     fine = 8
@@ -331,7 +331,7 @@ def rotate_radii(radii: ArrayLike, angle_deg: float) -> NDArray[np.float64]:
         ``r(theta_i - alpha)``: exact for band-limited radii, and an exact
         circular shift for whole multiples of the ray step.
     """
-    radii = _outline_radii(radii)
+    radii = _checked_radii(radii)
     if (
         isinstance(angle_deg, bool)
         or not isinstance(angle_deg, (int, float, np.number))
@@ -366,7 +366,7 @@ def resample_radii(radii: ArrayLike, n_angles: int) -> NDArray[np.float64]:
     resampled : (n_angles,) ndarray of float
         Radii at :func:`polar_angles` ``(n_angles)``.
     """
-    radii = _outline_radii(radii)
+    radii = _checked_radii(radii)
     position = np.arange(_check_n_angles(n_angles)) * radii.size / n_angles
     return np.interp(position, np.arange(radii.size), radii, period=radii.size)
 
@@ -396,7 +396,7 @@ def symmetry_order(radii: ArrayLike, *, tol: float = 1e-4, max_order: int = 36) 
     order is read from the radii, never from the Superformula's m: with m/4
     inside the formula an odd m does not give an m-fold curve.
     """
-    radii = _outline_radii(radii)
+    radii = _checked_radii(radii)
     energy = np.abs(np.fft.rfft(radii)[1:]) ** 2
     total = energy.sum()
     if total <= (1e-9 * radii.mean()) ** 2 * radii.size**2:
@@ -438,7 +438,7 @@ def fold_angle(angle_deg: ArrayLike, order: ArrayLike) -> NDArray[np.float64]:
 ANGLE_ROUNDING = 1e-4
 
 
-def _outline_radii(radii: ArrayLike) -> NDArray[np.float64]:
+def _checked_radii(radii: ArrayLike) -> NDArray[np.float64]:
     """``radii`` of one outline as floats: a 1-D array of at least 3 finite,
     non-negative numbers, or a ParameterError."""
     radii = _numbers(radii, "radii")

@@ -450,7 +450,7 @@ class _Scene:
         cfg, rng = self.config, self.rng
         n_points = cfg.outline_points if cfg.outline_noise > 0 else max(cfg.outline_points, 2048)
         theta = polar_angles(n_points)
-        radii, params = _outline_radii(shape, n_points)
+        radii, params = _drawn_radii(shape, n_points)
         if np.any(degenerate_rays(radii)):
             raise ParameterError(
                 "the shape's outline is unbounded or degenerate; choose parameters whose curve is closed"
@@ -605,7 +605,7 @@ class _Scene:
         return cv2.GaussianBlur(moved, (0, 0), max(1.0, 0.12 * radius))
 
 
-def _outline_radii(
+def _drawn_radii(
     shape: SuperformulaParams | ArrayLike, n_points: int
 ) -> tuple[NDArray[np.float64], dict[str, float] | None]:
     """The shape's radii at ``n_points`` equal angles, and its parameters (None for radii)."""
