@@ -185,3 +185,23 @@ def test_the_nearest_other_shape_through_the_pruned_scan_is_the_exhaustive_one(l
         whole = rotation_scores(large_lib.radii[k], large_lib, metric=metric).min(axis=0)
         whole[k] = np.inf
         assert nearest_other_distance(large_lib, k, metric=metric) == pytest.approx(whole.min(), rel=1e-6)
+
+
+def test_what_a_library_caches_is_read_only(large_lib):
+    # The caches are shared by every later match (default_library() is one
+    # object): an edit of one would change every later answer.
+    cached = {
+        "reference_map": large_lib.reference_map,
+        "sensor_metric.spectra": large_lib.sensor_metric.spectra,
+        "sensor_metric.weights": large_lib.sensor_metric.weights,
+        "scan_templates.spectra": large_lib.scan_templates.spectra,
+        "scan_templates.omega_norm_sq": large_lib.scan_templates.omega_norm_sq,
+        "prefilter.features": large_lib.prefilter.features,
+        "prefilter.reference": large_lib.prefilter.reference,
+        "sensor_prefilter.features": large_lib.sensor_prefilter.features,
+        "sensor_prefilter.centre": large_lib.sensor_prefilter.centre,
+    }
+    for name, array in cached.items():
+        with pytest.raises(ValueError, match="read-only"):
+            array.flat[0] = 0
+        assert not array.flags.writeable, name

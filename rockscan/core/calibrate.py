@@ -68,6 +68,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from rockscan.core._frozen import freeze_arrays
 from rockscan.core.choices import DEFAULT_TOLERANCE
 from rockscan.core.errors import ParameterError
 from rockscan.core.polar import radii_about
@@ -334,6 +335,9 @@ class SensorMetric:
     noise_band: tuple[int, int] = (0, 0)
     noise_gain: float = 0.0
     noise_floor: float = 0.0
+
+    def __post_init__(self) -> None:
+        freeze_arrays(self)
 
     @classmethod
     def from_radii(cls, radii: ArrayLike, tolerance: float = DEFAULT_TOLERANCE) -> SensorMetric:

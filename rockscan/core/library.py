@@ -426,7 +426,9 @@ class Library:
     @cached_property
     def reference_map(self) -> NDArray[np.float64]:
         """The reference information ``H_ref`` of every face (see information.py)."""
-        return reference_information(self.face_config)
+        reference = reference_information(self.face_config)
+        reference.setflags(write=False)
+        return reference
 
     @cached_property
     def scan_templates(self) -> ScanTemplates:

@@ -38,6 +38,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from rockscan.core._frozen import freeze_arrays
 from rockscan.core._threads import one_blas_thread
 from rockscan.core.calibrate import cutoff_at
 from rockscan.core.choices import METRICS, RANK_METRICS
@@ -262,6 +263,9 @@ class ScanTemplates:
     shape_weights: NDArray[np.float64]
     omega_norm_sq: NDArray[np.float64]
     n_angles: int
+
+    def __post_init__(self) -> None:
+        freeze_arrays(self)
 
     @classmethod
     @one_blas_thread

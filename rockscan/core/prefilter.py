@@ -57,6 +57,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 from numpy.typing import NDArray
 
+from rockscan.core._frozen import freeze_arrays
 from rockscan.core.errors import ParameterError
 
 if TYPE_CHECKING:
@@ -181,6 +182,7 @@ class Prefilter:
         object.__setattr__(self, "features", features)
         object.__setattr__(self, "reference", np.asarray(self.reference, dtype=np.int64))
         object.__setattr__(self, "norm_sq", np.einsum("kd,kd->k", features, features))
+        freeze_arrays(self)
 
     @classmethod
     def from_library(
@@ -476,6 +478,7 @@ class SensorPrefilter:
         features = columns.T
         object.__setattr__(self, "features", features)
         object.__setattr__(self, "norm_sq", np.einsum("kd,kd->k", features, features))
+        freeze_arrays(self)
 
     @classmethod
     def from_metric(
