@@ -10,6 +10,7 @@ import json
 import math
 import os
 import pty
+import shutil
 import signal
 import struct
 import subprocess
@@ -345,6 +346,16 @@ def test_an_unreachable_scheduler_names_the_address(folder, tmp_path, default_li
 
 
 # ---------------------------------------------------------------- nothing lost
+
+
+def test_a_finished_report_resumed_says_so_without_a_progress_line(folder, reference, tmp_path):
+    root, _, _ = folder
+    report = tmp_path / "report.csv"
+    shutil.copyfile(reference[1], report)
+    result = CliRunner().invoke(main, ["triage", str(root), "-o", str(report), "-j", "1", "--resume"])
+    assert "55 photos found, 55 already in the report, 0 classified" in result.stdout
+    # No "0/0 photos" line: the errors of the run before are not repeated either.
+    assert result.stderr == ""
 
 
 def test_a_killed_run_resumed_ends_with_every_photo_once(folder, reference, tmp_path):

@@ -267,11 +267,14 @@ class _Progress:
 
     def __call__(self, done: int, total: int) -> None:
         self.done = done
+        if not total:
+            # Every photo already in the report: the summary says so, a "0/0" line nothing.
+            return
         if self.lines:
             now = time.monotonic()
             step = max(1, total // 10)
             if done == total or now - self._last >= self.EVERY_S or done - self._last_done >= step:
-                if done or not total:
+                if done:
                     rate = done / max(now - self._started, 1e-9)
                     click.echo(
                         f"rockscan: triage: {done}/{total} photos ({100 * done // max(total, 1)}%), "
