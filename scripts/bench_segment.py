@@ -552,15 +552,19 @@ def run(
     jobs: int = 1,
     progress: bool = True,
     cache: Path | None = None,
+    first: int = 0,
 ) -> list[dict]:
     """Score every method on the same photos; one record per (method, photo).
 
     With ``jobs > 1`` photos are spread over forked processes (the methods
     need not be picklable). With ``cache``, generated photos are stored there
     and read back on later runs (keyed by generator version, condition, seed).
+    Generated photos start ``first`` seeds into their part (a block of seeds
+    no earlier run read); the real photos are always all of them.
     """
     global _CACHE_DIR
-    tasks = [(part, c, i) for c in conditions for i in range(photo_count(part, c, n))]
+    start_at = 0 if part == "real" else first
+    tasks = [(part, c, start_at + i) for c in conditions for i in range(photo_count(part, c, n))]
     _METHODS.clear()
     _METHODS.update(methods)
     _CACHE_DIR = None if cache is None else Path(cache)
@@ -1044,12 +1048,19 @@ def main(argv: list[str] | None = None) -> int:
         "--figures", type=Path, help="write the overlay figures and the score's figure into this folder"
     )
     parser.add_argument("--cache", type=Path, help="keep generated photos in this folder between runs")
+    parser.add_argument(
+        "--first",
+        type=int,
+        default=0,
+        help="start each generated part this many seeds in (default 0): a block no earlier run read",
+    )
     args = parser.parse_args(argv)
     methods = [m for m in args.methods.split(",") if m]
     unknown = [m for m in methods if m not in BUILTIN_METHODS]
-    if unknown or args.n < 1 or args.jobs < 1:
+    if unknown or args.n < 1 or args.jobs < 1 or args.first < 0:
         print(
-            f"error: unknown methods {unknown} or n/jobs below 1; methods: {', '.join(METHODS)}",
+            f"error: unknown methods {unknown}, n/jobs below 1 or --first below 0; "
+            f"methods: {', '.join(METHODS)}",
             file=sys.stderr,
         )
         return 2
@@ -1070,7 +1081,9 @@ def main(argv: list[str] | None = None) -> int:
                 continue
             conditions = _check_conditions(part, [c for c in wanted if c in _known(part)] if wanted else None)
             chosen = {m: BUILTIN_METHODS[m] for m in methods}
-            records += run(chosen, part, conditions, args.n, jobs=args.jobs, cache=args.cache)
+            records += run(
+                chosen, part, conditions, args.n, jobs=args.jobs, cache=args.cache, first=args.first
+            )
     except ValueError as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2

@@ -471,6 +471,19 @@ def test_the_benchmark_prints_one_table_and_writes_strict_json(tmp_path, capsys)
     assert len(data["records"]) == 2
 
 
+def test_the_benchmark_reads_a_later_block_of_seeds_with_first(tmp_path, capsys):
+    import json
+
+    out = tmp_path / "bench.json"
+    args = ["--n", "2", "--first", "7", "--conditions", "small", "--methods", "otsu", "--json", str(out)]
+    assert bench.main(args) == 0
+    assert [r["index"] for r in json.loads(out.read_text())["records"]] == [7, 8]
+    image, truth, _ = bench.photo("dev", "small", 7)
+    assert np.array_equal(image, scenes.make_scene("small", 7).image)
+    assert bench.main(["--first", "-1", "--methods", "otsu"]) == 2
+    assert "--first below 0" in capsys.readouterr().err
+
+
 def test_the_benchmark_says_the_auroc_is_undefined_without_wrong_outlines(capsys):
     # The real cell alone: one photo, outlined right (IoU 0.99), none wrong.
     assert bench.main(["--part", "real", "--conditions", "cell", "--methods", "rockscan"]) == 0
