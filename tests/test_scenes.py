@@ -478,7 +478,7 @@ def test_the_benchmark_reads_a_later_block_of_seeds_with_first(tmp_path, capsys)
     args = ["--n", "2", "--first", "7", "--conditions", "small", "--methods", "otsu", "--json", str(out)]
     assert bench.main(args) == 0
     assert [r["index"] for r in json.loads(out.read_text())["records"]] == [7, 8]
-    image, truth, _ = bench.photo("dev", "small", 7)
+    image, _, _ = bench.photo("dev", "small", 7)
     assert np.array_equal(image, scenes.make_scene("small", 7).image)
     assert bench.main(["--first", "-1", "--methods", "otsu"]) == 2
     assert "--first below 0" in capsys.readouterr().err
