@@ -592,3 +592,95 @@ def test_an_empty_path_and_a_fractional_size_say_what_is_wrong():
         read_image("")
     with pytest.raises(ParameterError, match="whole number of pixels"):
         read_image(__file__, max_side=2.5)
+
+
+# ------------------------------------------------ TIFF sample layouts Pillow and OpenCV misread
+
+
+def test_a_16_bit_colour_tiff_stored_plane_by_plane_reads_as_the_interleaved_one(tmp_path):
+    import tifffile
+
+    # Pillow kept 8 bits of each plane and OpenCV misread it: noise, classified as a rock.
+    rgb = (_photo("rgb", 8).astype(np.uint16) * 257) ^ 0x0055
+    tifffile.imwrite(tmp_path / "chunky.tif", rgb, photometric="rgb")
+    tifffile.imwrite(
+        tmp_path / "planar.tif", np.moveaxis(rgb, 2, 0), photometric="rgb", planarconfig="separate"
+    )
+    planar = read_image(tmp_path / "planar.tif")
+    np.testing.assert_array_equal(planar.pixels, read_image(tmp_path / "chunky.tif").pixels)
+    np.testing.assert_array_equal(planar.pixels, rgb)
+    assert planar.bit_depth == 16
+
+
+def test_a_float_colour_tiff_stored_plane_by_plane_reads_as_the_interleaved_one(tmp_path):
+    import tifffile
+
+    # OpenCV returned memory it never filled: another answer on every run.
+    rgb = _photo("rgb", 8)
+    samples = rgb.astype(np.float32) / 255
+    tifffile.imwrite(
+        tmp_path / "planar.tif", np.moveaxis(samples, 2, 0), photometric="rgb", planarconfig="separate"
+    )
+    (tmp_path / "chunky.tif").write_bytes(_tiff(samples))
+    want = read_image(tmp_path / "chunky.tif").pixels
+    for _ in range(3):
+        np.testing.assert_array_equal(read_image(tmp_path / "planar.tif").pixels, want)
+
+
+@pytest.mark.parametrize(
+    ("dtype", "low", "high"),
+    [(np.uint32, 0, 2**32 - 1), (np.int8, -128, 127), (np.float16, -0.5, 2.0)],
+)
+def test_gray_tiffs_of_wide_unsigned_signed_bytes_and_half_floats_scale_over_their_range(
+    tmp_path, dtype, low, high
+):
+    import tifffile
+
+    # Pillow read unsigned 32-bit samples as signed (those above 2**31 wrapped) and
+    # signed bytes as unsigned; neither reader took half floats.
+    gray = _photo("gray", 8).astype(np.float64) / 255
+    values = (low + gray * (high - low)).astype(dtype)
+    values.flat[:2] = (low, high)
+    tifffile.imwrite(tmp_path / "g.tif", values, photometric="minisblack")
+    pixels = read_image(tmp_path / "g.tif").pixels.astype(np.float64)
+    want = (values.astype(np.float64) - low) / (high - low) * 65535
+    assert pixels.flat[0] == 0 and pixels.flat[1] == 65535
+    # float32 holds 24 bits of a 32-bit sample: a step of at most one in 16 bits.
+    assert np.abs(pixels - want).max() <= 1.0
+
+
+def test_a_tiff_whose_first_page_is_a_preview_reads_its_full_resolution_page(tmp_path, caplog):
+    import tifffile
+
+    rgb = _photo("rgb", 8)
+    with tifffile.TiffWriter(tmp_path / "preview-first.tif") as tif:
+        tif.write(rgb[::4, ::4].copy(), photometric="rgb", subfiletype=1)
+        tif.write(rgb, photometric="rgb")
+    logger = logging.getLogger("rockscan.io.photos")
+    logger.addHandler(caplog.handler)
+    try:
+        with caplog.at_level("WARNING", logger="rockscan.io.photos"):
+            image = read_image(tmp_path / "preview-first.tif")
+    finally:
+        logger.removeHandler(caplog.handler)
+    # The preview gave the centroid and the outline in its own, quarter-size pixels.
+    np.testing.assert_array_equal(image.pixels, rgb)
+    assert image.full_shape == rgb.shape[:2]
+    assert "a TIFF of 2 pages; reading page 2, its first at full resolution" in caplog.text
+
+
+def test_a_corrupt_png_or_jpeg_is_named_as_what_it_is(tmp_path):
+    buf = io.BytesIO()
+    Image.fromarray(_photo("rgb", 8)).save(buf, format="PNG")
+    data = bytearray(buf.getvalue())
+    data[29] ^= 0xFF  # the header chunk's checksum
+    (tmp_path / "bad.png").write_bytes(bytes(data))
+    (tmp_path / "bad.jpg").write_bytes(b"\xff\xd8\xff\xe0" + b"\0" * 40)
+    (tmp_path / "text.png").write_bytes(b"not a photo")
+    # "not a supported image (PNG, JPEG, TIFF or BMP)" told the user to convert a PNG to PNG.
+    with pytest.raises(ImageReadError, match=r"bad.png: a PNG file that cannot be decoded \(corrupt\)$"):
+        read_image(tmp_path / "bad.png")
+    with pytest.raises(ImageReadError, match=r"bad.jpg: a JPEG file that cannot be decoded"):
+        read_image(tmp_path / "bad.jpg")
+    with pytest.raises(ImageReadError, match=r"text.png: not a supported image"):
+        read_image(tmp_path / "text.png")

@@ -111,7 +111,18 @@ def _rows(path) -> list[dict]:
 
 
 def test_find_photos_walks_in_order_skips_other_files_and_survives_loops(tmp_path):
-    for name in ("b.PNG", "a.jpg", ".hidden.bmp", "c.txt", "sub/x.tif", "z/y.jpeg", "sub/deep/w.TIFF"):
+    names = (
+        "b.PNG",
+        "a.jpg",
+        ".hidden.bmp",
+        "c.txt",
+        "sub/x.tif",
+        "z/y.jpeg",
+        "sub/deep/w.TIFF",
+        "w.jfif",
+        "v.JPE",
+    )
+    for name in names:
         (tmp_path / name).parent.mkdir(parents=True, exist_ok=True)
         (tmp_path / name).write_bytes(b"x")
     os.symlink("..", tmp_path / "sub" / "loop")
@@ -119,7 +130,18 @@ def test_find_photos_walks_in_order_skips_other_files_and_survives_loops(tmp_pat
     os.symlink("nowhere.png", tmp_path / "gone.png")
     listing = find_photos(tmp_path)
     names = [os.path.relpath(p, tmp_path) for p in listing.photos]
-    assert names == [".hidden.bmp", "a.jpg", "b.PNG", "gone.png", "sub/x.tif", "sub/deep/w.TIFF", "z/y.jpeg"]
+    # .jfif and .jpe: the names browsers and old tools give a JPEG.
+    assert names == [
+        ".hidden.bmp",
+        "a.jpg",
+        "b.PNG",
+        "gone.png",
+        "v.JPE",
+        "w.jfif",
+        "sub/x.tif",
+        "sub/deep/w.TIFF",
+        "z/y.jpeg",
+    ]
     assert listing.problems == ()
     # Paths are joined to the folder as given.
     assert all(p.startswith(str(tmp_path) + os.sep) for p in listing.photos)

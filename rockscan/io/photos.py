@@ -45,7 +45,7 @@ if TYPE_CHECKING:
 __all__ = ["IMAGE_SUFFIXES", "MAX_DEEP_BYTES", "MAX_PIXELS", "ImageData", "read_image", "write_photo"]
 
 #: Photo file endings rockscan reads (lower case).
-IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".tif", ".tiff", ".bmp")
+IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".jpe", ".jfif", ".tif", ".tiff", ".bmp")
 
 #: Largest photo read, in pixels (a 16000 x 12500 frame); larger files are refused
 #: rather than exhausting memory.
@@ -193,13 +193,18 @@ def _decode(
     the file's bits per sample, deep colour)."""
     from PIL import Image, UnidentifiedImageError
 
+    header = _tiff_header(path)
+    if header is not None and header.misread:
+        return _decode_wide_tiff(path, header, max_side)
     deep_color = False
     try:
         with _quiet_decoders(), _pillow_limits(), open(path, "rb") as fh, Image.open(fh) as im:
             if im.format not in _FORMATS:
                 raise ImageReadError(f"{path}: {im.format} images are not supported (use {_SUPPORTED})")
             pages = int(getattr(im, "n_frames", 1)) if im.format == "TIFF" else 1
-            deep_color = _is_deep_color(im)
+            page = _full_resolution_page(im, pages)
+            # OpenCV decodes a TIFF's first page only: another page keeps Pillow's 8 bits.
+            deep_color = page == 0 and _is_deep_color(im)
             bit_depth = 16 if deep_color or im.mode.startswith("I") else 8
             full_cols, full_rows = im.size
             decoded = 1
@@ -234,8 +239,12 @@ def _decode(
     except (Image.DecompressionBombError, Image.DecompressionBombWarning):
         raise ImageReadError(f"{path}: photo is larger than {MAX_PIXELS:,} pixels") from None
     except UnidentifiedImageError:
-        header = _tiff_header(path)
         if header is None:
+            kind = _signature(path)
+            if kind is not None:
+                # The file says what it is: "not a supported image" would tell the user
+                # to convert it to the format it has.
+                raise ImageReadError(f"{path}: a {kind} file that cannot be decoded (corrupt)") from None
             raise ImageReadError(f"{path}: not a supported image ({_SUPPORTED})") from None
         # Pillow reads gray floating-point TIFFs but not colour ones, nor 32-bit
         # integer colour: OpenCV decodes those (and tells a broken one apart).
@@ -247,8 +256,42 @@ def _decode(
     if pages > 1:
         # A stack (a microscope's focus series): its first page, said aloud (and not
         # while the decoders' own messages are kept off standard error).
-        _log.warning("%s: a TIFF of %d pages; reading its first", path, pages)
+        which = "its first" if page == 0 else f"page {page + 1}, its first at full resolution"
+        _log.warning("%s: a TIFF of %d pages; reading %s", path, pages, which)
     return pixels, factor, decoded, orientation, (full_rows, full_cols), bit_depth, deep_color
+
+
+def _full_resolution_page(im: Image.Image, pages: int) -> int:
+    """The first page of a TIFF that is not a reduced-resolution copy (a preview
+    a scanner or camera puts first: bit 0 of its NewSubfileType), turned to;
+    0 when every page is one, or for one page."""
+    for page in range(pages):
+        if page:
+            im.seek(page)
+        if not int(im.tag_v2.get(_NEW_SUBFILE_TYPE, 0)) & 1:
+            return page
+    im.seek(0)
+    return 0
+
+
+def _signature(path: Path) -> str | None:
+    """The format a file's first bytes name (PNG, JPEG or BMP), or None."""
+    try:
+        with open(path, "rb") as fh:
+            head = fh.read(8)
+    except OSError:
+        return None
+    for magic, kind in _SIGNATURES:
+        if head.startswith(magic):
+            return kind
+    return None
+
+
+_SIGNATURES = ((b"\x89PNG\r\n\x1a\n", "PNG"), (b"\xff\xd8\xff", "JPEG"), (b"BM", "BMP"))
+
+
+#: The TIFF tag whose bit 0 marks a page as a reduced-resolution copy of another.
+_NEW_SUBFILE_TYPE = 254
 
 
 @dataclass(frozen=True)
@@ -263,10 +306,36 @@ class _TiffHeader:
     #: Where the orientation's value lies in the file, and its byte order.
     orientation_at: int | None = None
     order: str = "<"
+    #: 1: samples interleaved pixel by pixel; 2: stored plane by plane.
+    planar: int = 1
+    #: 1: unsigned integers; 2: signed integers; 3: floating point.
+    sample_format: int = 1
+
+    @property
+    def misread(self) -> bool:
+        """Whether Pillow and OpenCV misread these samples, and tifffile decodes them:
+        more than 8 bits a sample stored plane by plane (Pillow keeps 8 bits,
+        OpenCV returns memory it never filled), signed bytes and unsigned 32-bit
+        integers (read with the wrong sign), half floats (read by neither)."""
+        return (
+            (self.planar == 2 and self.bits > 8)
+            or (self.sample_format == 2 and self.bits == 8)
+            or (self.sample_format == 1 and self.bits == 32)
+            or (self.sample_format == 3 and self.bits == 16)
+        )
 
 
-#: TIFF tags read from the first directory: size, bits and samples, orientation.
-_TIFF_TAGS = {256: "cols", 257: "rows", 258: "bits", 277: "samples", 274: "orientation"}
+#: TIFF tags read from the first directory: size, bits and samples, orientation,
+#: how the samples are laid out and what numbers they are.
+_TIFF_TAGS = {
+    256: "cols",
+    257: "rows",
+    258: "bits",
+    277: "samples",
+    274: "orientation",
+    284: "planar",
+    339: "sample_format",
+}
 #: Sizes of TIFF field types: SHORT, LONG, LONG8.
 _TIFF_INTS = {3: ("H", 2), 4: ("I", 4), 16: ("Q", 8)}
 #: Classic (42) and big (43) TIFF: how entries are counted, how offsets are
@@ -319,11 +388,10 @@ def _tiff_header(path: Path) -> _TiffHeader | None:
 def _decode_wide_tiff(
     path: Path, header: _TiffHeader, max_side: int | None
 ) -> tuple[NDArray[np.uint16], int, int, int, tuple[int, int], int, bool]:
-    """A TIFF of floating-point or 32-bit samples, decoded by OpenCV and scaled
+    """A TIFF of floating-point or 32-bit samples, decoded by OpenCV (by tifffile
+    where both Pillow and OpenCV misread them: ``_TiffHeader.misread``) and scaled
     to 16 bits over the range of its colour samples (as Pillow's gray ones are;
     alpha in [0, 1] as it stands); the tuple of :func:`_decode`."""
-    import cv2
-
     rows, cols = header.rows, header.cols
     if rows * cols > MAX_PIXELS:
         raise ImageReadError(f"{path}: photo is larger than {MAX_PIXELS:,} pixels")
@@ -336,6 +404,32 @@ def _decode_wide_tiff(
             f"(its file and two copies of its samples must fit in {MAX_DEEP_BYTES // 2**20} MiB; "
             "save it with 8 or 16 bits a sample)"
         )
+    arr = _tifffile_samples(path) if header.misread else _opencv_samples(path, header)
+    if arr is None or arr.size == 0:
+        raise ImageReadError(f"{path}: not a supported image ({_SUPPORTED})")
+    if arr.ndim == 3 and arr.shape[2] > 4:
+        raise ImageReadError(f"{path}: photos have at most 4 channels, this one has {arr.shape[2]}")
+    factor = _reduction((cols, rows), max_side)
+    orientation = header.orientation if header.orientation in range(1, 9) else 1
+    if arr.dtype in (np.uint8, np.uint16):
+        # Unsigned samples of 16 bits stored plane by plane (tifffile's): as they stand.
+        kept = _reduce(arr, factor)
+        if kept.ndim == 3 and kept.shape[2] == 2:
+            kept = np.dstack([kept[..., 0]] * 3 + [kept[..., 1]])
+        return kept, factor, 1, orientation, (rows, cols), 8 * arr.itemsize, False
+    if arr.dtype not in (np.float32, np.float64):
+        arr = arr.astype(np.float32)
+    arr = _reduce(arr, factor)
+    if not np.all(np.isfinite(arr)):
+        raise ImageReadError(f"{path}: image holds non-finite values")
+    return _wide_to_16(arr, rgb=header.misread), factor, 1, orientation, (rows, cols), 16, False
+
+
+def _opencv_samples(path: Path, header: _TiffHeader) -> NDArray[np.generic] | None:
+    """A TIFF's first page as OpenCV decodes it: gray, gray + alpha, BGR or BGRA,
+    the stored pixels (not turned upright); None if it cannot."""
+    import cv2
+
     data = np.fromfile(path, dtype=np.uint8)
     if header.orientation_at is not None and header.orientation_at + 2 <= data.size:
         # Some OpenCV releases turn a TIFF upright as they decode it, some do not:
@@ -344,24 +438,32 @@ def _decode_wide_tiff(
             struct.pack(header.order + "H", 1), np.uint8
         )
     with _quiet_decoders():
-        arr = cv2.imdecode(data, cv2.IMREAD_UNCHANGED)
-    del data
-    if arr is None or arr.size == 0:
-        raise ImageReadError(f"{path}: not a supported image ({_SUPPORTED})")
-    if arr.ndim == 3 and arr.shape[2] > 4:
-        raise ImageReadError(f"{path}: photos have at most 4 channels, this one has {arr.shape[2]}")
-    if arr.dtype not in (np.float32, np.float64):
-        arr = arr.astype(np.float32)
-    factor = _reduction((cols, rows), max_side)
-    arr = _reduce(arr, factor)
-    if not np.all(np.isfinite(arr)):
-        raise ImageReadError(f"{path}: image holds non-finite values")
-    orientation = header.orientation if header.orientation in range(1, 9) else 1
-    return _wide_to_16(arr), factor, 1, orientation, (rows, cols), 16, False
+        return cv2.imdecode(data, cv2.IMREAD_UNCHANGED)
 
 
-def _wide_to_16(arr: NDArray[np.floating]) -> NDArray[np.uint16]:
-    """OpenCV's gray, gray + alpha, BGR or BGRA samples as 16-bit gray or RGB(A)."""
+def _tifffile_samples(path: Path) -> NDArray[np.generic]:
+    """A TIFF's first page as tifffile decodes it: gray, gray + alpha, RGB or RGBA,
+    the stored pixels (not turned upright), samples last."""
+    import tifffile
+
+    try:
+        with _quiet_decoders(), tifffile.TiffFile(path) as tif:
+            page = tif.pages[0]
+            arr, axes = page.asarray(), page.axes
+    except MemoryError:
+        raise
+    except (*_DECODE_ERRORS, RuntimeError) as exc:
+        # tifffile names what it cannot decode (a codec it lacks) or what is broken.
+        raise ImageReadError(f"{path}: image is truncated or corrupt ({_first_line(exc)})") from None
+    if arr.ndim == 3 and axes.startswith("S"):
+        # Stored plane by plane: the samples come first.
+        arr = np.moveaxis(arr, 0, -1)
+    return np.ascontiguousarray(arr)
+
+
+def _wide_to_16(arr: NDArray[np.floating], *, rgb: bool = False) -> NDArray[np.uint16]:
+    """OpenCV's gray, gray + alpha, BGR or BGRA samples (``rgb``: gray, gray +
+    alpha, RGB or RGBA, as tifffile gives them) as 16-bit gray or RGB(A)."""
     if arr.ndim == 3 and arr.shape[2] == 1:
         arr = arr[..., 0]
     alpha = arr.ndim == 3 and arr.shape[2] in (2, 4)
@@ -385,6 +487,8 @@ def _wide_to_16(arr: NDArray[np.floating]) -> NDArray[np.uint16]:
         else:
             opacity[...] = 65535
     samples = np.rint(np.clip(arr, 0.0, 65535.0, out=arr), out=arr).astype(np.uint16)
+    if rgb and samples.ndim == 3 and samples.shape[2] in (3, 4):
+        return np.ascontiguousarray(samples)
     return _opencv_to_rgb(samples)
 
 
