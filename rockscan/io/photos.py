@@ -264,7 +264,9 @@ def _decode(
 def _full_resolution_page(im: Image.Image, pages: int) -> int:
     """The first page of a TIFF that is not a reduced-resolution copy (a preview
     a scanner or camera puts first: bit 0 of its NewSubfileType), turned to;
-    0 when every page is one, or for one page."""
+    0 when every page is one, or for one page (of any format)."""
+    if pages <= 1:
+        return 0
     for page in range(pages):
         if page:
             im.seek(page)
