@@ -112,7 +112,8 @@ def test_jpeg_reads_as_pillow_decodes_it(tmp_path, mode):
 
 
 def test_suffixes_cover_the_interface_formats():
-    assert set(IMAGE_SUFFIXES) == {".png", ".jpg", ".jpeg", ".tif", ".tiff", ".bmp"}
+    # The formats the interface names, and JPEG's other names (.jpe, .jfif: browsers' downloads).
+    assert set(IMAGE_SUFFIXES) == {".png", ".jpg", ".jpeg", ".jpe", ".jfif", ".tif", ".tiff", ".bmp"}
 
 
 def test_palette_and_one_bit_photos_become_rgba_and_gray(tmp_path):
