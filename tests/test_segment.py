@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import warnings
 
+import cv2
 import numpy as np
 import pytest
 from hypothesis import example, given, settings
@@ -121,6 +122,54 @@ def test_an_alpha_channel_that_cuts_the_rock_out_is_used():
     assert seg.channel == "alpha"
     np.testing.assert_allclose(rocks[0].outline.centroid_rowcol, (60.0, 70.0), atol=0.05)
     assert rocks[0].outline.area_px == pytest.approx(np.pi * 25 * 40, rel=0.01)
+
+
+def _rendered_scene(seed: int):
+    """A teardrop on textured, lit ground, left of the frame's middle."""
+    config = RenderConfig(rows=240, cols=320, center_xy=(130.0, 120.0), area_fraction=0.06)
+    return render_photo(SPECS["teardrop"], config, rng=seed)
+
+
+@pytest.mark.parametrize("seed", [1, 2])
+@pytest.mark.parametrize("hidden", ["erased", "padded", "round"])
+def test_an_alpha_channel_that_hides_part_of_a_scene_is_not_taken_for_the_rock(hidden, seed):
+    # A photo with ground erased, pasted on a larger transparent canvas, or seen
+    # through a round field of view: the opaque part is the scene, not the rock.
+    # Its frame was outlined, scored 1.0 and matched to a rounded square.
+    photo = _rendered_scene(seed)
+    rows, cols = photo.pixels.shape[:2]
+    alpha = np.full((rows, cols), 255, np.uint8)
+    offset = (0, 0)
+    if hidden == "erased":
+        alpha[:, 250:] = 0
+    elif hidden == "round":
+        yy, xx = np.mgrid[:rows, :cols]
+        alpha[(yy - 120) ** 2 + (xx - 150) ** 2 > 118**2] = 0
+    rgba = np.dstack([photo.pixels, alpha])
+    if hidden == "padded":
+        offset = (40, 70)
+        canvas = np.zeros((rows + 90, cols + 150, 4), np.uint8)
+        canvas[offset[0] : offset[0] + rows, offset[1] : offset[1] + cols] = rgba
+        rgba = canvas
+    seg, rocks = measure_rocks(rgba, 360)
+    assert seg.channel != "alpha"
+    want = np.array(photo.truth["centroid_xy"])[::-1] + offset
+    np.testing.assert_allclose(rocks[0].outline.centroid_rowcol, want, atol=1.0)
+    assert rocks[0].outline.area_px == pytest.approx(photo.truth["area_px"], rel=0.05)
+
+
+@pytest.mark.parametrize("seed", [1, 2, 3])
+def test_a_textured_rock_cut_out_by_its_alpha_keeps_the_alpha_outline(seed):
+    # Inside a cut-out, the rock's lit face or a band of shade stands out of its
+    # rim: the alpha, not such a part, is the outline.
+    photo = _rendered_scene(seed)
+    seg = segment(photo.pixels)
+    rock = np.zeros(seg.labels.shape, np.uint8)
+    rock[seg.labels == 1] = 255
+    alpha = cv2.resize(rock, photo.pixels.shape[1::-1], interpolation=cv2.INTER_LINEAR)
+    cut = segment(np.dstack([photo.pixels, alpha]))
+    assert cut.channel == "alpha"
+    assert cut.rocks[0].mask.sum() == pytest.approx(np.count_nonzero(alpha >= 128), rel=0.01)
 
 
 # ---------------------------------------------------------------- the main rock

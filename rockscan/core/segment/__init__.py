@@ -19,7 +19,12 @@ Steps (see :func:`segment`):
    channel, and last the distance of each pixel's chromaticity from the
    ground's (the median along the frame's border), which sees rocks of any
    hue, where the projection sees one side of one direction. An alpha channel that really
-   cuts the rock out (5% to 98% of the frame transparent) is used directly.
+   cuts the rock out (5% to 98% of the frame transparent) is used directly;
+   one that hides part of a scene (a photo turned or padded in an editor, a
+   round field of view, ground erased) is not: with the transparent pixels
+   painted as the ground at the opaque part's rim runs on, a rock that stands
+   out away from that rim, outlined with confidence, is the rock
+   (``rockscan.core.segment.cutout``).
 3. **Lighting.** After a median filter and a Gaussian of ``detect_sigma``
    (sensor noise, JPEG blocks, fine texture), a polynomial surface of degree
    ``lighting_degree`` is fitted to the ground by least squares, leaving out
@@ -251,6 +256,7 @@ from rockscan.core.errors import NoRockFoundError
 from rockscan.core.segment.channels import _at_scale, _channels, _check_pixels, _pyramid, _unit, to_gray
 from rockscan.core.segment.choose import choose_ranked, rank
 from rockscan.core.segment.confidence import confidence_features, outline_confidence
+from rockscan.core.segment.cutout import painted, partly_transparent, stands_inside
 from rockscan.core.segment.detect import _detect, _Detection
 from rockscan.core.segment.finish import completed, placed, rock_hued, rock_window
 from rockscan.core.segment.outliner import Outliner
@@ -297,6 +303,9 @@ def segment(
     docstring.
     """
     config = config or SegmentConfig()
+    inside = _scene_behind_alpha(pixels, config, all_rocks)
+    if inside is not None:
+        return inside
     found, choice, easy = _chosen(pixels, config, all_rocks=all_rocks)
     if all_rocks:
         return found
@@ -305,6 +314,27 @@ def segment(
         return found
     main = dataclasses.replace(found.rocks[0], score=outline_confidence(features))
     return dataclasses.replace(found, rocks=(main, *found.rocks[1:]))
+
+
+def _scene_behind_alpha(
+    pixels: NDArray[np.generic], config: SegmentConfig, all_rocks: bool
+) -> Segmentation | None:
+    """For a partly transparent photo whose alpha does not cut its rock out (a
+    turned, padded or vignetted scene, ``rockscan.core.segment.cutout``), the
+    segmentation of the scene's colour, its transparent pixels painted as its
+    ground; None for any other photo (a cut-out's alpha is its outline)."""
+    arr = _check_pixels(pixels)
+    scene = painted(arr)
+    if scene is None:
+        return None
+    colour, edge_zone = scene
+    try:
+        found = segment(colour, config)
+    except NoRockFoundError:
+        return None
+    if not stands_inside(found, edge_zone):
+        return None
+    return segment(colour, config, all_rocks=True) if all_rocks else found
 
 
 def _chosen(
@@ -431,7 +461,7 @@ def _candidate_pool(
     if arr.ndim == 3 and arr.shape[2] == 4:
         alpha, covered = _at_scale(_pyramid(arr[..., 3], config.work_size), largest_scale)
         alpha = _unit(alpha, arr.dtype)
-        if 0.05 < float((alpha < 0.5).mean()) < 0.98:
+        if partly_transparent(alpha):
             scale_rowcol = (covered[0] / alpha.shape[0], covered[1] / alpha.shape[1])
             return _from_alpha(alpha, scale_rowcol, config, all_rocks)
 
