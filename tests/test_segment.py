@@ -158,6 +158,19 @@ def test_an_alpha_channel_that_hides_part_of_a_scene_is_not_taken_for_the_rock(h
     assert rocks[0].outline.area_px == pytest.approx(photo.truth["area_px"], rel=0.05)
 
 
+@pytest.mark.parametrize("dtype", [np.uint16, np.uint32, np.int16, np.float32, np.float64])
+def test_a_scene_behind_an_alpha_is_found_in_every_pixel_type(dtype):
+    photo = _rendered_scene(1)
+    alpha = np.full(photo.pixels.shape[:2], 1.0)
+    alpha[:, 250:] = 0.0
+    unit = np.dstack([photo.pixels / 255.0, alpha])
+    top = np.iinfo(dtype).max if np.issubdtype(dtype, np.integer) else 1.0
+    want = segment(np.dstack([photo.pixels, (alpha * 255).astype(np.uint8)]))
+    got = segment((unit * top).astype(dtype))
+    assert got.channel == want.channel != "alpha"
+    assert got.rocks[0].mask.sum() == pytest.approx(want.rocks[0].mask.sum(), rel=0.01)
+
+
 @pytest.mark.parametrize("seed", [1, 2, 3])
 def test_a_textured_rock_cut_out_by_its_alpha_keeps_the_alpha_outline(seed):
     # Inside a cut-out, the rock's lit face or a band of shade stands out of its

@@ -21,9 +21,9 @@ Steps (see :func:`segment`):
    hue, where the projection sees one side of one direction. An alpha channel that really
    cuts the rock out (5% to 98% of the frame transparent) is used directly;
    one that hides part of a scene (a photo turned or padded in an editor, a
-   round field of view, ground erased) is not: with the transparent pixels
-   painted as the ground at the opaque part's rim runs on, a rock that stands
-   out away from that rim, outlined with confidence, is the rock
+   round field of view, ground erased) is not: with each transparent pixel
+   painted the colour of the nearest opaque one, a rock that stands out away
+   from the opaque part's rim, outlined with confidence, is the rock
    (``rockscan.core.segment.cutout``).
 3. **Lighting.** After a median filter and a Gaussian of ``detect_sigma``
    (sensor noise, JPEG blocks, fine texture), a polynomial surface of degree

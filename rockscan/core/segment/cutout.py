@@ -8,12 +8,15 @@ is transparent too, and its opaque part is a scene: ground with the rock in it.
 
 The two are told apart by what the opaque part holds. Its rim (the band just
 inside the transparent region) is ground in a scene and the rock's own edge in
-a cut-out. With the transparent pixels painted the rim's colour, a scene shows
-its rock standing out of that ground, away from the rim; a cut-out shows at most
-its rock's own shading, and a region that runs into the rim.
+a cut-out. With each transparent pixel painted the colour of the nearest opaque
+one, a scene shows its rock standing out of its ground, away from the rim; a
+cut-out shows at most its rock's own shading, a region that runs into the rim
+or is outlined with little confidence.
 """
 
 from __future__ import annotations
+
+import math
 
 import numpy as np
 from numpy.typing import NDArray
@@ -48,10 +51,19 @@ def partly_transparent(alpha: NDArray[np.float32]) -> bool:
     return low < float((alpha < 0.5).mean()) < high
 
 
+#: Longer side of the grid the transparent pixels' paint is worked out on: the
+#: paint is a blurred continuation of the ground, and a large photo's own size
+#: would cost its nearest-pixel map 16 bytes a pixel.
+PAINT_SIZE = 1024
+
+#: Rows of the photo painted at a time (the paint, brought to the photo's size, a band at a time).
+_BAND = 256
+
+
 def painted(pixels: NDArray[np.generic]) -> tuple[NDArray[np.generic], NDArray[np.bool_]] | None:
-    """The colour of a partly transparent RGBA photo with its transparent pixels
-    painted the median colour of the opaque part's rim, and where the rim and the
-    transparent region lie; None for a photo without such an alpha channel.
+    """The colour of a partly transparent RGBA photo with each transparent pixel
+    painted the colour of the nearest opaque one, blurred there, and where the
+    rim and the transparent region lie; None for a photo without such an alpha.
 
     Parameters
     ----------
@@ -60,31 +72,52 @@ def painted(pixels: NDArray[np.generic]) -> tuple[NDArray[np.generic], NDArray[n
 
     Returns
     -------
-    (rows, cols, 3) ndarray of ``pixels``' dtype, (rows, cols) ndarray of bool
-        The painted photo, and its edge zone: the transparent pixels and the rim.
+    (rows, cols, 3) ndarray of ``pixels``' dtype
+        The painted photo.
+    (r, c) ndarray of bool
+        Its edge zone, the transparent pixels and the rim, on a grid of at most
+        ``PAINT_SIZE`` on its longer side.
     """
     import cv2
+    from scipy import ndimage
 
     if pixels.ndim != 3 or pixels.shape[2] != 4:
         return None
-    alpha = _unit(pixels[..., 3], pixels.dtype)
-    if not partly_transparent(alpha):
+    opaque = _unit(pixels[..., 3], pixels.dtype) >= 0.5
+    if not partly_transparent(np.where(opaque, np.float32(1), np.float32(0))):
         return None
-    opaque = (alpha >= 0.5).astype(np.uint8)
-    rim_width = max(_RIM_PIXELS, round(RIM * max(opaque.shape)))
+    rows, cols = opaque.shape
+    step = max(1, math.ceil(max(rows, cols) / PAINT_SIZE))
+    size = (max(1, cols // step), max(1, rows // step))
+    colour = np.ascontiguousarray(pixels[..., :3])
+    unit = colour if colour.dtype in (np.uint8, np.uint16, np.float32) else _unit(colour, colour.dtype)
+    small = cv2.resize(unit, size, interpolation=cv2.INTER_AREA).astype(np.float32)
+    small_opaque = cv2.resize(opaque.astype(np.float32), size, interpolation=cv2.INTER_AREA) >= 0.5
+    hidden = ~small_opaque
+    if hidden.all() or not hidden.any():
+        return None
+    rim_width = max(_RIM_PIXELS, round(RIM * max(size)))
     # Distance inside the opaque part to the nearest transparent pixel.
-    depth = cv2.distanceTransform(opaque, cv2.DIST_L2, 3)
-    rim = (opaque > 0) & (depth <= rim_width)
-    from scipy import ndimage
-
-    # Each transparent pixel takes the colour of the nearest opaque one, blurred
-    # there: the rim's ground runs on, with no edge where the alpha had one.
-    _, (near_rows, near_cols) = ndimage.distance_transform_edt(opaque == 0, return_indices=True)
-    colour = np.ascontiguousarray(pixels[..., :3])[near_rows, near_cols]
-    soft = cv2.GaussianBlur(colour, (0, 0), rim_width)
-    hidden = opaque == 0
-    colour[hidden] = soft[hidden]
-    return colour, hidden | rim
+    depth = cv2.distanceTransform(small_opaque.astype(np.uint8), cv2.DIST_L2, 3)
+    rim = small_opaque & (depth <= rim_width)
+    # The rim's ground runs on past the alpha's edge, with no edge of its own there.
+    _, (near_rows, near_cols) = ndimage.distance_transform_edt(hidden, return_indices=True)
+    paint = cv2.GaussianBlur(small[near_rows, near_cols], (0, 0), rim_width)
+    if unit is not colour and colour.dtype.kind in "ui":
+        # Back from [0, 1] to the photo's own integers (a wide type segment also takes).
+        paint = paint * float(np.iinfo(colour.dtype).max)
+    if colour.dtype.kind in "ui":
+        info = np.iinfo(colour.dtype)
+        paint = np.clip(np.rint(paint), info.min, info.max)
+    paint = paint.astype(colour.dtype)
+    out = colour.copy()
+    on_rows = np.minimum(np.arange(rows) // step, size[1] - 1)
+    on_cols = np.minimum(np.arange(cols) // step, size[0] - 1)
+    for r0 in range(0, rows, _BAND):
+        band = ~opaque[r0 : r0 + _BAND]
+        if band.any():
+            out[r0 : r0 + _BAND][band] = paint[on_rows[r0 : r0 + _BAND]][:, on_cols][band]
+    return out, hidden | rim
 
 
 def stands_inside(found: Segmentation, edge_zone: NDArray[np.bool_]) -> bool:
