@@ -124,3 +124,18 @@ def test_a_2000_rock_sheet_stays_under_10_mb(sheet):
     long = [{**row, "path": "m/" + "x" * 114 + ".jpg"} for row in rows]
     per_card = max(len(render_html([row], **options).encode()) - empty for row in long)
     assert empty + 2000 * per_card < 10_000_000
+
+
+def test_the_embedded_provenance_holds_no_markup_and_reads_back():
+    import json
+    import re
+
+    # "<!--<script>" in a folder's name put the HTML parser in the script element's
+    # double-escaped state: the element swallowed the page's own script, and the
+    # sheet's sorting, filter and shape list stopped working.
+    provenance = {"photos": {"folder": "/data/<!--<script>/a&b", "relative_to": None}, "rockscan": "x"}
+    page = render_html([], n_rows=0, n_errors=0, provenance=provenance)
+    body = re.search(r'<script type="application/json" id="provenance-json">(.*?)</script>', page, re.S)
+    assert body is not None and not set("<>&") & set(body.group(1))
+    assert json.loads(body.group(1)) == provenance
+    assert page.count("<script") == 2  # the provenance, and the page's own script

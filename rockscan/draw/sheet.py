@@ -144,7 +144,14 @@ def _footer(provenance: dict[str, Any] | None) -> str:
         else:
             shown = _plain(value)
         items.append(f"<dt>{_esc(str(key))}</dt><dd>{_esc(shown) or '-'}</dd>")
-    full = json.dumps(provenance, sort_keys=True).replace("</", "<\\/")
+    # No "<", ">" or "&" inside the script element: "<!--<script>" in a folder's name put
+    # the HTML parser in a state where the element swallowed the page's own script.
+    full = (
+        json.dumps(provenance, sort_keys=True)
+        .replace("<", "\\u003c")
+        .replace(">", "\\u003e")
+        .replace("&", "\\u0026")
+    )
     return (
         "<footer><p><b>How this report was made</b> (a report is resumed only with the same settings):</p>"
         f'<dl id="provenance">{"".join(items)}</dl>'
