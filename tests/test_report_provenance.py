@@ -165,3 +165,38 @@ def test_resume_from_another_working_folder_is_refused_not_doubled(photos, tmp_p
     assert _files(report) == before
     monkeypatch.chdir(photos.parent)
     assert CliRunner().invoke(main, ["triage", photos.name, *args, "--resume"]).exit_code == 0
+
+
+def test_a_report_reached_through_a_link_is_written_to_its_target(photos, tmp_path):
+    # Through "latest.csv -> runs/sol.csv", the new rows went into the target
+    # unranked and a file of its own took the link's place: two reports disagreed.
+    folder = tmp_path / "photos"
+    folder.mkdir()
+    first, *later = sorted(photos.iterdir())
+    shutil.copy(first, folder)
+    (tmp_path / "runs").mkdir()
+    target = tmp_path / "runs" / "sol.csv"
+    args = ["-j", "1", "-q"]
+    assert CliRunner().invoke(main, ["triage", str(folder), "-o", str(target), *args]).exit_code == 0
+    link = tmp_path / "latest.csv"
+    link.symlink_to(Path("runs") / "sol.csv")
+    for path in later:
+        shutil.copy(path, folder)
+    result = CliRunner().invoke(main, ["triage", str(folder), "-o", str(link), "--resume", *args])
+    assert result.exit_code == 0, result.output
+    assert link.is_symlink() and link.resolve() == target.resolve()
+    rows = list(read_rows(target))
+    assert [r["rank"] for r in rows] == [1, 2, 3]
+    assert sorted(Path(r["path"]).name for r in rows) == sorted(p.name for p in photos.iterdir())
+
+
+@pytest.mark.parametrize("report", ["sheet.html.jsonl", "map.geojson.jsonl"])
+def test_the_journal_of_an_html_or_geojson_report_is_not_taken_for_a_report(photos, tmp_path, report):
+    # A run on the journal ran beside the report's own run (each locked its own
+    # name) and wrote rows without thumbnails into the sheet.
+    result = CliRunner().invoke(main, ["triage", str(photos), "-o", str(tmp_path / report), "-q"])
+    assert result.exit_code == 2
+    assert (
+        f"the journal the report {tmp_path / report[: -len('.jsonl')]} keeps while it runs" in result.stderr
+    )
+    assert list(tmp_path.iterdir()) == []

@@ -143,6 +143,11 @@ def triage(
     from rockscan.run.triage import TriageConfig, triage_folder
 
     _check_options(workers, scheduler, resume, overwrite, report_path, observed_path, library_path)
+    if report_path is not None:
+        from rockscan.io.report import report_target
+
+        # A link's target: checked for writing, written and locked as the report.
+        report_path = str(report_target(report_path))
     # `rockscan -q triage` is `triage -q`: the group's -q leaves warnings and errors only.
     quiet = quiet or not log.isEnabledFor(logging.INFO)
     lib = _load_library(library_path)
@@ -212,10 +217,10 @@ def _check_options(
     if resume and report_path is None:
         raise click.UsageError("--resume needs the report to continue: -o REPORT")
     if report_path is not None:
-        from rockscan.io.report import journal_path, report_format
+        from rockscan.io.report import journal_path, report_target
 
         try:
-            report_format(report_path)
+            report_target(report_path)
         except ParameterError as exc:
             raise click.BadParameter(str(exc), param_hint="-o/--output") from None
         # The journal of an HTML or GeoJSON report counts: a run cut short leaves only it.

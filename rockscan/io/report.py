@@ -67,6 +67,7 @@ __all__ = [
     "read_provenance",
     "read_rows",
     "report_format",
+    "report_target",
 ]
 
 #: Report file endings and their formats.
@@ -172,6 +173,37 @@ def report_format(path: str | os.PathLike[str]) -> str:
             f"not {suffix or 'nothing'!r}"
         )
     return REPORT_FORMATS[suffix]
+
+
+def report_target(path: str | os.PathLike[str]) -> Path:
+    """The file a report named ``path`` is written to: ``path``, or for a symbolic
+    link the file it points to, so that the link stays a link (a run through
+    ``latest.csv`` appended to its target, then put a file of its own in the
+    link's place) and a run through the link and one on its target lock each
+    other out.
+
+    Raises
+    ------
+    ParameterError
+        For an ending no report has (:func:`report_format`), the journal of an
+        HTML or GeoJSON report named as a report of its own (its rows lack what
+        the report's own run gives them, and a run on it ran beside the
+        report's), and a link to a file of another ending.
+    """
+    path = Path(path)
+    fmt = report_format(path)
+    if fmt == "jsonl" and REPORT_FORMATS.get(Path(path.stem).suffix.lower()) in SIDE_JOURNAL:
+        report = path.with_name(path.stem)
+        raise ParameterError(
+            f"{path}: the journal the report {report} keeps while it runs, not a report of its own; "
+            f"give -o {report}"
+        )
+    if not path.is_symlink():
+        return path
+    target = Path(os.path.realpath(path))
+    if REPORT_FORMATS.get(target.suffix.lower()) != fmt:
+        raise ParameterError(f"{path}: a link to {target}, which is not a {path.suffix} report")
+    return report_target(target)
 
 
 def journal_path(path: str | os.PathLike[str]) -> Path:

@@ -52,6 +52,7 @@ from rockscan.io.report import (
     lock_report,
     photo_key,
     report_format,
+    report_target,
 )
 from rockscan.run.backends import (
     _DaskBackend,
@@ -355,8 +356,7 @@ def triage_folder(
 
     require_library(library)
     config = config or TriageConfig()
-    report = Path(report)
-    report_format(report)
+    report = report_target(report)
     listing = find_photos(folder)
     with lock_report(report):
         return _triage_locked(listing, folder, report, library, config, observed, progress, on_error)
