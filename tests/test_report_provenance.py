@@ -100,7 +100,7 @@ def test_the_library_hash_is_its_content_in_every_process(tmp_path, default_lib)
         # auto ranks clean rocks as eigenspace does: its rows are not sensor's.
         (".jsonl", ["--metric", "sensor"], 'method.metric "auto" (report) vs "sensor" (now)'),
         # Another folder's photos would join the report.
-        (".csv", ["FOLDER"], "photos.folder"),
+        (".csv", ["FOLDER"], "the report is of the photos in "),
     ],
 )
 def test_resume_with_other_settings_exits_2_and_leaves_the_report_byte_for_byte(
@@ -161,7 +161,11 @@ def test_resume_from_another_working_folder_is_refused_not_doubled(photos, tmp_p
     before = _files(report)
     monkeypatch.chdir(tmp_path / "elsewhere")
     result = CliRunner().invoke(main, ["triage", os.path.relpath(photos), *args, "--resume"])
-    assert result.exit_code == 2 and "photos.relative_to" in result.stderr
+    # Said as what to do: "photos.relative_to "/tmp/..." (report) vs null (now)" left the user guessing.
+    expected = (
+        f"the report names its photos from {photos.parent}: give the folder as {photos.name} from there"
+    )
+    assert result.exit_code == 2 and expected in result.stderr
     assert _files(report) == before
     monkeypatch.chdir(photos.parent)
     assert CliRunner().invoke(main, ["triage", photos.name, *args, "--resume"]).exit_code == 0
@@ -200,3 +204,23 @@ def test_the_journal_of_an_html_or_geojson_report_is_not_taken_for_a_report(phot
         f"the journal the report {tmp_path / report[: -len('.jsonl')]} keeps while it runs" in result.stderr
     )
     assert list(tmp_path.iterdir()) == []
+
+
+def test_resume_with_another_observed_library_is_refused(photos, tmp_path):
+    # A slip in --observed's path started a new, empty library: shapes the first
+    # file had seen were called novel again, in the same report.
+    report = tmp_path / "r.csv"
+    args = ["triage", str(photos), "-o", str(report), "-j", "1", "-q"]
+    first = CliRunner().invoke(main, [*args, "--observed", str(tmp_path / "seen.npz")])
+    assert first.exit_code == 0, first.output
+    before = _files(report)
+    other = CliRunner().invoke(main, [*args, "--observed", str(tmp_path / "sen.npz"), "--resume"])
+    assert other.exit_code == 2
+    # Whole paths: shortened in the middle, the two names read alike.
+    assert (
+        f'options.novelty.file "{tmp_path / "seen.npz"}" (report) vs "{tmp_path / "sen.npz"}" (now)'
+        in other.stderr
+    )
+    assert _files(report) == before and not (tmp_path / "sen.npz").exists()
+    again = CliRunner().invoke(main, [*args, "--observed", str(tmp_path / "seen.npz"), "--resume"])
+    assert again.exit_code == 0, again.output

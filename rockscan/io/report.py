@@ -440,6 +440,11 @@ def read_provenance(path: str | os.PathLike[str]) -> dict[str, Any] | None:
 
 
 def _differences(old: Any, new: Any, prefix: str = "") -> list[str]:
+    if prefix == "" and isinstance(old, dict) and isinstance(new, dict):
+        said = _photos_difference(old.get("photos"), new.get("photos"))
+        if said is not None:
+            rest = _differences({**old, "photos": None}, {**new, "photos": None})
+            return [said, *rest]
     if isinstance(old, dict) and isinstance(new, dict):
         out = []
         for key in sorted(set(old) | set(new)):
@@ -450,8 +455,25 @@ def _differences(old: Any, new: Any, prefix: str = "") -> list[str]:
     return []
 
 
+def _photos_difference(old: Any, new: Any) -> str | None:
+    """What a user must do when a report's photos were named otherwise than now, in
+    words (the report's paths are the folder's as given then), or None if they agree."""
+    if not (isinstance(old, dict) and isinstance(new, dict)) or old == new:
+        return None
+    folder, base = old.get("folder"), old.get("relative_to")
+    if folder != new.get("folder"):
+        return f"the report is of the photos in {folder}, not {new.get('folder')}"
+    if base is None:
+        return f"the report names its photos by absolute paths: give the folder as {folder}"
+    given = os.path.relpath(str(folder), str(base))
+    return f"the report names its photos from {base}: give the folder as {given} from there"
+
+
 def _short(value: Any) -> str:
     text = json.dumps(value)
+    # A path is shown whole: its differing part may lie anywhere in it.
+    if isinstance(value, str):
+        return text
     return text if len(text) <= 24 else text[:12] + "..." + text[-6:]
 
 

@@ -79,6 +79,7 @@ def report_provenance(
     novelty: ObservedShapes | None = None,
     *,
     folder: str | os.PathLike[str] | None = None,
+    observed: str | os.PathLike[str] | None = None,
 ) -> dict[str, Any]:
     """How a triage report's rows are made: everything that changes a row.
 
@@ -94,6 +95,10 @@ def report_provenance(
         for a folder given as a relative path the working folder the rows'
         paths are relative to, so that a resumed run neither adds another
         folder's photos nor gives the same photos again under other names.
+    observed : path-like, optional
+        The observed library's file, recorded (its real path) with the novelty
+        settings: a run resumed with another file (a typing slip starts a new,
+        empty one) called shapes novel that the first file had already seen.
 
     Returns
     -------
@@ -112,7 +117,11 @@ def report_provenance(
     segmentation = classify.pop("segment", None)
     options: dict[str, Any] = {"all_rocks": bool(config.all_rocks), **classify}
     if novelty is not None:
-        options["novelty"] = {"metric": novelty.metric, "threshold": novelty.threshold}
+        options["novelty"] = {
+            "metric": novelty.metric,
+            "threshold": novelty.threshold,
+            "file": None if observed is None else os.path.realpath(observed),
+        }
         options["novelty_weight"] = novelty_weight(library, config)
     provenance: dict[str, Any] = {
         "rockscan": __version__,

@@ -482,7 +482,7 @@ class _TriageRun:
         self.observed_dirty = False
         self.novelty = self._observed_shapes()
         self.novelty_weight = novelty_weight(library, config)
-        provenance = report_provenance(library, config, self.novelty, folder=folder)
+        provenance = report_provenance(library, config, self.novelty, folder=folder, observed=observed)
         self.journal = ReportJournal(
             report, resume=config.resume, overwrite=config.overwrite, provenance=provenance
         )
