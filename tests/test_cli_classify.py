@@ -93,6 +93,33 @@ def test_json_is_one_object_per_photo_in_input_order(rendered, tmp_path):
     assert [records[0]["nearest"], records[2]["nearest"]] == ["teardrop", "six-pointed-star"]
 
 
+def test_a_bug_on_one_photo_is_its_error_line_and_the_others_go_on(rendered, monkeypatch):
+    # A broken build stopped the whole batch with a traceback at its first photo.
+    import rockscan.run.pipeline as pipeline
+
+    real = pipeline.classify_path
+    teardrop, star = rendered["teardrop"][0], rendered["six-pointed-star"][0]
+
+    def flaky(path, *args, **kwargs):
+        if path == teardrop:
+            raise AttributeError("an unexpected bug\nwith a second line")
+        return real(path, *args, **kwargs)
+
+    monkeypatch.setattr(pipeline, "classify_path", flaky)
+    result = run("--json", teardrop, star)
+    assert result.exit_code == 1
+    first, second = lines(result.stdout)
+    assert first == {
+        "path": teardrop,
+        "error": "internal error, please report it: AttributeError: an unexpected bug",
+    }
+    assert second["nearest"] == "six-pointed-star"
+    assert (
+        result.stderr
+        == f"rockscan: error: {teardrop}: internal error, please report it: AttributeError: an unexpected bug\n"
+    )
+
+
 def test_json_values_are_the_truth_of_rendered_photos(rendered):
     result = run("--json", *(path for path, _ in rendered.values()))
     assert result.exit_code == 0, result.output

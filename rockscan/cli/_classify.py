@@ -147,8 +147,8 @@ def classify(
     Exit status: 0 when every photo was classified, 1 when any could not be,
     2 for usage errors.
     """
-    from rockscan.core.errors import RockscanError
-    from rockscan.run.pipeline import ClassifyConfig, classify_path
+    from rockscan.core.errors import RockscanError, internal_error
+    from rockscan.run.pipeline import ClassifyConfig, PhotoResult, classify_path
 
     photos = _expand_stdin(photos)
     inputs = (*photos, *([library_path] if library_path else []))
@@ -160,7 +160,11 @@ def classify(
     if table is not None:
         click.echo(table.header())
     for i, photo in enumerate(photos):
-        result = classify_path(photo, lib, config, all_rocks=all_rocks)
+        try:
+            result = classify_path(photo, lib, config, all_rocks=all_rocks)
+        except Exception as exc:  # a bug, not the photo's fault: the other photos still go
+            log.debug("%s: classification failed", photo, exc_info=True)
+            result = PhotoResult(path=photo, error=internal_error(exc))
         failed += not result.ok
         if as_json:
             for record in result.records():

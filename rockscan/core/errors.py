@@ -49,6 +49,13 @@ class WriteError(RockscanError, OSError):
     no such folder, no permission). Nothing half-written is left behind."""
 
 
+def internal_error(exc: BaseException) -> str:
+    """The one-line error of a photo whose classification failed on a bug, not on the
+    photo: said as one, so that the batch goes on and the bug gets reported."""
+    first = str(exc).splitlines()[0] if str(exc) else ""
+    return f"internal error, please report it: {type(exc).__name__}: {first}".rstrip(": ")
+
+
 def first_line(exc: BaseException) -> str:
     """The first line of an exception's message (its type name when it has none),
     for the one-line errors of the public interface."""

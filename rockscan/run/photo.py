@@ -13,7 +13,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 from numpy.typing import NDArray
 
-from rockscan.core.errors import RockscanError
+from rockscan.core.errors import RockscanError, internal_error
 from rockscan.run.pipeline import ClassifyConfig, RockResult, classify_path
 
 if TYPE_CHECKING:
@@ -88,13 +88,7 @@ def photo_outcome(
         ]
         return dataclasses.replace(outcomes[0], more=tuple(outcomes[1:]))
     except Exception as exc:  # one photo must never stop a batch of millions
-        first = str(exc).splitlines()[0] if str(exc) else ""
-        return PhotoOutcome(
-            record={
-                "path": path,
-                "error": f"internal error, please report it: {type(exc).__name__}: {first}".rstrip(": "),
-            }
-        )
+        return PhotoOutcome(record={"path": path, "error": internal_error(exc)})
 
 
 def _thumbnails_or_none(
