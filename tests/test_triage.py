@@ -310,6 +310,7 @@ def test_folder_of_50_photos_5_corrupt_files_gives_50_ranked_rows_and_5_errors(f
     # The summary: counts, the top 10, the errors.
     out = result.stdout
     assert "55 photos found, 0 already in the report, 55 classified" in out
+    assert "s; 1 other file skipped (.txt)\n" in out
     assert "50 ranked, 5 errors" in out
     top = out.split("top 10:\n")[1].split("errors (5):\n")
     assert len(top[0].strip().splitlines()) == 11
@@ -622,6 +623,20 @@ def test_an_empty_folder_gives_an_empty_report_and_success(tmp_path):
     provenance, columns = (tmp_path / "r.csv").read_text().splitlines()
     assert provenance.startswith("# rockscan_report {") and columns == ",".join(CSV_COLUMNS)
     assert _rows(tmp_path / "r.csv") == []
+    assert "warning: no photos under" in result.stderr and "other file" not in result.stdout
+
+
+def test_a_folder_without_photos_says_what_it_skipped(tmp_path):
+    # A folder of a phone's HEIC photos gave an empty report without a word.
+    folder = tmp_path / "phone"
+    folder.mkdir()
+    for name in ("IMG_0001.HEIC", "IMG_0002.webp", "IMG_0003.heic", "README"):
+        (folder / name).write_bytes(b"x")
+    result = CliRunner().invoke(main, ["triage", str(folder), "-o", str(tmp_path / "r.csv")])
+    assert result.exit_code == 0, result.output
+    assert "0 photos found, 0 already in the report, 0 classified in" in result.stdout
+    assert "; 4 other files skipped (no ending, .heic, .webp)" in result.stdout
+    assert f"rockscan: warning: no photos under {folder}: photos end in .png, .jpg," in result.stderr
 
 
 def _run_on_terminal(args: list[str]) -> str:

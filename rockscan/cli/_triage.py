@@ -316,6 +316,15 @@ class _Progress:
             self._bar = None
 
 
+def _skipped(summary: Any) -> str:
+    """ "; 3 other files skipped (.heic, .txt)", or nothing: no file goes unmentioned."""
+    if not summary.n_skipped:
+        return ""
+    kinds = ", ".join(ending or "no ending" for ending in summary.skipped_endings)
+    many = "s" if summary.n_skipped > 1 else ""
+    return f"; {summary.n_skipped} other file{many} skipped ({kinds})"
+
+
 def _print_summary(summary: Any, folder: str, *, to_stderr: bool) -> None:
     from rockscan.io.report import shown_text
 
@@ -325,8 +334,12 @@ def _print_summary(summary: Any, folder: str, *, to_stderr: bool) -> None:
 
     echo(
         f"triage of {folder}: {summary.n_found} photos found, {summary.n_resumed} already in the report, "
-        f"{summary.n_processed} classified in {summary.elapsed_s:.1f} s"
+        f"{summary.n_processed} classified in {summary.elapsed_s:.1f} s{_skipped(summary)}"
     )
+    if not summary.n_found:
+        from rockscan.io.photos import IMAGE_SUFFIXES
+
+        log.warning("no photos under %s: photos end in %s", folder, ", ".join(IMAGE_SUFFIXES))
     where = "" if to_stderr else f"{summary.report}: "
     line = (
         f"{where}{summary.n_rows - summary.n_errors} ranked, {summary.n_errors} errors; "

@@ -28,10 +28,20 @@ class PhotoListing:
         folder's files by name, then its subfolders by name.
     problems : tuple of (str, str)
         Folders that could not be listed, and why.
+    n_skipped : int
+        Other files seen (no photo ending), skipped.
+    skipped_endings : tuple of str
+        Their endings (lower case, "" for none), each once, sorted; at most ``SKIPPED_ENDINGS``.
     """
 
     photos: tuple[str, ...]
     problems: tuple[tuple[str, str], ...] = ()
+    n_skipped: int = 0
+    skipped_endings: tuple[str, ...] = ()
+
+
+#: Most endings of skipped files a listing names (a folder may hold thousands of kinds).
+SKIPPED_ENDINGS = 8
 
 
 def find_photos(folder: str | os.PathLike[str]) -> PhotoListing:
@@ -61,6 +71,8 @@ def find_photos(folder: str | os.PathLike[str]) -> PhotoListing:
         raise ParameterError(f"{folder}: is a file, not a folder; use 'rockscan classify' for single photos")
     photos: list[str] = []
     problems: list[tuple[str, str]] = []
+    n_skipped = 0
+    endings: set[str] = set()
     visited: set[tuple[int, int]] = set()
     stack = [root]
     while stack:
@@ -86,5 +98,15 @@ def find_photos(folder: str | os.PathLike[str]) -> PhotoListing:
                 subfolders.append(entry.path)
             elif entry.name.lower().endswith(IMAGE_SUFFIXES):
                 photos.append(entry.path)
+            else:
+                # Said in the summary: a folder of HEIC photos gave an empty report without a word.
+                n_skipped += 1
+                if len(endings) < SKIPPED_ENDINGS:
+                    endings.add(os.path.splitext(entry.name)[1].lower())
         stack.extend(reversed(subfolders))
-    return PhotoListing(photos=tuple(photos), problems=tuple(problems))
+    return PhotoListing(
+        photos=tuple(photos),
+        problems=tuple(problems),
+        n_skipped=n_skipped,
+        skipped_endings=tuple(sorted(endings)),
+    )

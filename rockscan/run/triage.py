@@ -198,6 +198,10 @@ class TriageSummary:
     errors : tuple of dict
         The first 20 error rows of the report.
     elapsed_s : float
+    n_skipped : int
+        Files under the folder that are not photos (no photo ending), skipped.
+    skipped_endings : tuple of str
+        Their endings (see :class:`rockscan.io.folders.PhotoListing`).
     """
 
     report: Path
@@ -212,6 +216,8 @@ class TriageSummary:
     top: tuple[dict[str, Any], ...] = field(repr=False)
     errors: tuple[dict[str, Any], ...] = field(repr=False)
     elapsed_s: float = 0.0
+    n_skipped: int = 0
+    skipped_endings: tuple[str, ...] = ()
 
     @property
     def failed(self) -> bool:
@@ -416,6 +422,8 @@ def _triage_locked(
         top=ranked.top,
         errors=ranked.errors,
         elapsed_s=time.perf_counter() - started,
+        n_skipped=listing.n_skipped,
+        skipped_endings=listing.skipped_endings,
     )
 
 
