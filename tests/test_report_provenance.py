@@ -224,3 +224,27 @@ def test_resume_with_another_observed_library_is_refused(photos, tmp_path):
     assert _files(report) == before and not (tmp_path / "sen.npz").exists()
     again = CliRunner().invoke(main, [*args, "--observed", str(tmp_path / "seen.npz"), "--resume"])
     assert again.exit_code == 0, again.output
+
+
+def test_a_resume_says_which_rows_no_longer_fit_the_folder(photos, tmp_path):
+    # A photo removed, renamed or replaced under its name kept its old row without
+    # a word: "10 photos found ... 12 ranked".
+    folder = tmp_path / "photos"
+    shutil.copytree(photos, folder)
+    report = tmp_path / "r.csv"
+    args = ["triage", str(folder), "-o", str(report), "-j", "1", "-q"]
+    assert CliRunner().invoke(main, args).exit_code == 0
+    first, second, third = sorted(folder.iterdir())
+    first.unlink()
+    second.rename(folder / "renamed.png")
+    # Replaced under its name: later than the report's last write.
+    os.utime(third, (report.stat().st_mtime + 5, report.stat().st_mtime + 5))
+    result = CliRunner().invoke(main, [*args[:-1], "--resume"])
+    assert result.exit_code == 0, result.output
+    assert "2 photos in the report are no longer under" in result.stderr
+    assert "1 photo in the report was changed after it was last written" in result.stderr
+    # Still so at the next resume: the rows are what they were.
+    again = CliRunner().invoke(main, [*args[:-1], "--resume"])
+    assert "changed after" in again.stderr and "2 photos in the report are no longer" in again.stderr
+    fresh = CliRunner().invoke(main, [*args[:-1], "--overwrite"])
+    assert fresh.exit_code == 0 and "warning" not in fresh.stderr

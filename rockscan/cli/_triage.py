@@ -336,6 +336,29 @@ def _print_summary(summary: Any, folder: str, *, to_stderr: bool) -> None:
         f"triage of {folder}: {summary.n_found} photos found, {summary.n_resumed} already in the report, "
         f"{summary.n_processed} classified in {summary.elapsed_s:.1f} s{_skipped(summary)}"
     )
+    if summary.n_gone:
+        one = summary.n_gone == 1
+        log.warning(
+            "%d photo%s in the report %s no longer under %s; %s kept (--overwrite starts afresh)",
+            summary.n_gone,
+            "" if one else "s",
+            "is" if one else "are",
+            folder,
+            "its row is" if one else "their rows are",
+        )
+    if summary.n_changed:
+        one = summary.n_changed == 1
+        log.warning(
+            "%d photo%s in the report %s changed after it was last written; %s of the photo%s as %s "
+            "(--overwrite classifies %s afresh)",
+            summary.n_changed,
+            "" if one else "s",
+            "was" if one else "were",
+            "its row is" if one else "their rows are",
+            "" if one else "s",
+            "it was" if one else "they were",
+            "it" if one else "them",
+        )
     if not summary.n_found:
         from rockscan.io.photos import IMAGE_SUFFIXES
 

@@ -49,6 +49,7 @@ from rockscan.io.report import (
     THUMBNAIL_KEY,
     RankedReport,
     ReportJournal,
+    journal_path,
     lock_report,
     photo_key,
     report_format,
@@ -202,6 +203,11 @@ class TriageSummary:
         Files under the folder that are not photos (no photo ending), skipped.
     skipped_endings : tuple of str
         Their endings (see :class:`rockscan.io.folders.PhotoListing`).
+    n_gone : int
+        Photos a resumed report holds that are no longer under the folder (their rows are kept).
+    n_changed : int
+        Photos a resumed report holds that were changed after the report was last
+        written: their rows are of the photos as they were.
     """
 
     report: Path
@@ -218,6 +224,8 @@ class TriageSummary:
     elapsed_s: float = 0.0
     n_skipped: int = 0
     skipped_endings: tuple[str, ...] = ()
+    n_gone: int = 0
+    n_changed: int = 0
 
     @property
     def failed(self) -> bool:
@@ -380,6 +388,7 @@ def _triage_locked(
 ) -> TriageSummary:
     started = time.perf_counter()
     run = _TriageRun(report, folder, library, config, observed, progress, on_error)
+    stale = _stale_rows(listing, run.journal.done, journal_path(report))
     todo = [p for p in listing.photos if photo_key(p) not in run.journal.done]
     problems = [(p, msg) for p, msg in listing.problems if photo_key(p) not in run.journal.done]
     run.total = len(todo) + len(problems)
@@ -424,7 +433,28 @@ def _triage_locked(
         elapsed_s=time.perf_counter() - started,
         n_skipped=listing.n_skipped,
         skipped_endings=listing.skipped_endings,
+        n_gone=stale[0],
+        n_changed=stale[1],
     )
+
+
+def _stale_rows(listing: PhotoListing, done: set[str], journal: Path) -> tuple[int, int]:
+    """Of the photos a resumed report holds, how many are no longer under the
+    folder, and how many were changed since the report was last written (a photo
+    replaced under its name keeps its old row); both 0 for a new report."""
+    if not done:
+        return 0, 0
+    try:
+        written = journal.stat().st_mtime
+    except OSError:
+        return 0, 0
+    found = {photo_key(p) for p in listing.photos} | {photo_key(p) for p, _ in listing.problems}
+    changed = 0
+    for path in listing.photos:
+        if photo_key(path) in done:
+            with contextlib.suppress(OSError):
+                changed += os.stat(path).st_mtime > written
+    return len(done - found), changed
 
 
 def _outcomes(
