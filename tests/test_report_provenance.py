@@ -248,3 +248,19 @@ def test_a_resume_says_which_rows_no_longer_fit_the_folder(photos, tmp_path):
     assert "changed after" in again.stderr and "2 photos in the report are no longer" in again.stderr
     fresh = CliRunner().invoke(main, [*args[:-1], "--overwrite"])
     assert fresh.exit_code == 0 and "warning" not in fresh.stderr
+
+
+def test_a_killed_runs_temporary_report_is_removed_by_the_next_run(photos, tmp_path, default_lib):
+    # kill -9 while the report was ranked left ".r.csv.tmpPID" (25 MB in the probe)
+    # beside it for good.
+    dead = subprocess.run(
+        [sys.executable, "-c", "import os; print(os.getpid())"], capture_output=True, text=True
+    )
+    leftover = tmp_path / f".r.csv.tmp{int(dead.stdout)}"
+    leftover.write_bytes(b"x" * 1000)
+    running = tmp_path / f".r.csv.tmp{os.getppid()}"  # a live process's: not touched
+    running.write_bytes(b"x")
+    other = tmp_path / f".other.csv.tmp{int(dead.stdout)}"  # another file's
+    other.write_bytes(b"x")
+    triage_folder(photos, tmp_path / "r.csv", default_lib, TriageConfig(workers=1))
+    assert not leftover.exists() and running.exists() and other.exists()

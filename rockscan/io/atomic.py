@@ -15,13 +15,52 @@ from typing import BinaryIO
 
 from rockscan.core.errors import WriteError
 
-__all__ = ["atomic_file", "temporary_name", "write_bytes_atomic"]
+__all__ = ["atomic_file", "remove_leftovers", "temporary_name", "write_bytes_atomic"]
 
 
 def temporary_name(path: str | os.PathLike[str]) -> Path:
     """The hidden name a file is written under before it is renamed over ``path``."""
     path = Path(path)
     return path.with_name(f".{path.name}.tmp{os.getpid()}")
+
+
+def remove_leftovers(path: str | os.PathLike[str]) -> int:
+    """Remove the temporary files a killed process left beside ``path`` (``kill -9``
+    while it wrote: nothing ran to remove them); those of live processes stay.
+
+    Returns
+    -------
+    int
+        How many were removed.
+    """
+    path = Path(path)
+    prefix = f".{path.name}.tmp"
+    removed = 0
+    try:
+        entries = list(os.scandir(path.parent))
+    except OSError:
+        return 0
+    for entry in entries:
+        pid = entry.name[len(prefix) :]
+        if not entry.name.startswith(prefix) or not pid.isdigit() or _alive(int(pid)):
+            continue
+        with contextlib.suppress(OSError):
+            os.unlink(entry.path)
+            removed += 1
+    return removed
+
+
+def _alive(pid: int) -> bool:
+    """Whether a process of that id runs (one of another user counts as running)."""
+    if pid == os.getpid():
+        return True
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except (PermissionError, OverflowError, OSError):
+        return True
+    return True
 
 
 @contextlib.contextmanager

@@ -42,6 +42,7 @@ from typing import TYPE_CHECKING, Any
 
 from rockscan.core.errors import ParameterError, RockscanError
 from rockscan.core.novelty import NoveltyConfig, ObservedShapes, observed_name
+from rockscan.io.atomic import remove_leftovers
 from rockscan.io.folders import PhotoListing, find_photos
 from rockscan.io.library import append_pending, read_pending
 from rockscan.io.report import (
@@ -373,6 +374,8 @@ def triage_folder(
     report = report_target(report)
     listing = find_photos(folder)
     with lock_report(report):
+        # Held by this run alone: a temporary report beside it is a killed run's.
+        remove_leftovers(report)
         return _triage_locked(listing, folder, report, library, config, observed, progress, on_error)
 
 
