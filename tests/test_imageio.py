@@ -685,3 +685,23 @@ def test_a_corrupt_png_or_jpeg_is_named_as_what_it_is(tmp_path):
         read_image(tmp_path / "bad.jpg")
     with pytest.raises(ImageReadError, match=r"text.png: not a supported image"):
         read_image(tmp_path / "text.png")
+
+
+def test_a_tiff_whose_compression_needs_imagecodecs_says_so(tmp_path):
+    import importlib.util
+
+    import tifffile
+
+    if importlib.util.find_spec("imagecodecs") is not None:
+        pytest.skip("imagecodecs is installed: the file below is then decoded (as garbage)")
+    path = tmp_path / "lzw.tif"
+    rgb = _photo("rgb", 8).astype(np.uint16) * 257
+    tifffile.imwrite(path, np.moveaxis(rgb, 2, 0), photometric="rgb", planarconfig="separate")
+    with tifffile.TiffFile(path) as tif:
+        at = tif.pages[0].tags["Compression"].valueoffset
+    data = bytearray(path.read_bytes())
+    data[at : at + 2] = struct.pack("<H", 5)  # LZW, as scientific software writes it
+    path.write_bytes(bytes(data))
+    # "image is truncated or corrupt" blamed a whole file for a codec tifffile lacks.
+    with pytest.raises(ImageReadError, match=r"compression needs the imagecodecs package \(pip install"):
+        read_image(path)

@@ -455,7 +455,11 @@ def _tifffile_samples(path: Path) -> NDArray[np.generic]:
     except MemoryError:
         raise
     except (*_DECODE_ERRORS, RuntimeError) as exc:
-        # tifffile names what it cannot decode (a codec it lacks) or what is broken.
+        if "imagecodecs" in str(exc):
+            # LZW, JPEG and most compressions other than deflate: the file is whole.
+            raise ImageReadError(
+                f"{path}: this TIFF's compression needs the imagecodecs package (pip install imagecodecs)"
+            ) from None
         raise ImageReadError(f"{path}: image is truncated or corrupt ({_first_line(exc)})") from None
     if arr.ndim == 3 and axes.startswith("S"):
         # Stored plane by plane: the samples come first.
