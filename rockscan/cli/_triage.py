@@ -220,11 +220,12 @@ def _check_options(
         from rockscan.io.report import journal_path, report_target
 
         try:
-            report_target(report_path)
+            target = report_target(report_path)
         except ParameterError as exc:
             raise click.BadParameter(str(exc), param_hint="-o/--output") from None
-        # The journal of an HTML or GeoJSON report counts: a run cut short leaves only it.
-        there = [str(p) for p in (report_path, journal_path(report_path)) if os.path.exists(p)]
+        # The journal of an HTML or GeoJSON report counts: a run cut short leaves only it
+        # (beside a link's target, where the run wrote it).
+        there = [str(p) for p in (target, journal_path(target)) if os.path.exists(p)]
         if there and not (resume or overwrite):
             message = f"{there[0]} exists: add --resume to continue it, or --overwrite to start again"
             raise click.BadParameter(message, param_hint="-o/--output")
@@ -317,7 +318,8 @@ class _Progress:
 
 
 def _skipped(summary: Any) -> str:
-    """ "; 3 other files skipped (.heic, .txt)", or nothing: no file goes unmentioned."""
+    """The summary's note of the files skipped, e.g. ``; 3 other files skipped (.heic,
+    .txt)``, or "" when there were none: no file goes unmentioned."""
     if not summary.n_skipped:
         return ""
     kinds = ", ".join(ending or "no ending" for ending in summary.skipped_endings)

@@ -390,8 +390,10 @@ def _triage_locked(
     on_error: Callable[[dict[str, Any]], None] | None,
 ) -> TriageSummary:
     started = time.perf_counter()
+    # Before the journal is opened: a resume drops a row cut short, and so writes to it.
+    written = _modified(journal_path(report))
     run = _TriageRun(report, folder, library, config, observed, progress, on_error)
-    stale = _stale_rows(listing, run.journal.done, journal_path(report))
+    stale = _stale_rows(listing, run.journal.done, written)
     todo = [p for p in listing.photos if photo_key(p) not in run.journal.done]
     problems = [(p, msg) for p, msg in listing.problems if photo_key(p) not in run.journal.done]
     run.total = len(todo) + len(problems)
@@ -441,15 +443,20 @@ def _triage_locked(
     )
 
 
-def _stale_rows(listing: PhotoListing, done: set[str], journal: Path) -> tuple[int, int]:
-    """Of the photos a resumed report holds, how many are no longer under the
-    folder, and how many were changed since the report was last written (a photo
-    replaced under its name keeps its old row); both 0 for a new report."""
-    if not done:
-        return 0, 0
+def _modified(path: Path) -> float | None:
+    """When a file was last written, or None if it is not there."""
     try:
-        written = journal.stat().st_mtime
+        return path.stat().st_mtime
     except OSError:
+        return None
+
+
+def _stale_rows(listing: PhotoListing, done: set[str], written: float | None) -> tuple[int, int]:
+    """Of the photos a resumed report holds, how many are no longer under the
+    folder, and how many were changed after the report was last written (at
+    ``written``: a photo replaced under its name keeps its old row); both 0 for
+    a new report."""
+    if not done or written is None:
         return 0, 0
     found = {photo_key(p) for p in listing.photos} | {photo_key(p) for p, _ in listing.problems}
     changed = 0
