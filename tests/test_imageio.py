@@ -705,3 +705,24 @@ def test_a_tiff_whose_compression_needs_imagecodecs_says_so(tmp_path):
     # "image is truncated or corrupt" blamed a whole file for a codec tifffile lacks.
     with pytest.raises(ImageReadError, match=r"compression needs the imagecodecs package \(pip install"):
         read_image(path)
+
+
+def test_tiffs_read_by_tifffile_give_light_not_ink(tmp_path):
+    import tifffile
+
+    # tifffile gives what the file stores: a plane-by-plane 16-bit CMYK TIFF came
+    # back as RGBA (black taken for alpha), a gray one with 0 as white came back negative.
+    rgb = (_photo("rgb", 8).astype(np.uint16) * 257).astype(np.float64) / 65535
+    black = 1.0 - rgb.max(axis=2, keepdims=True)
+    inks = (1.0 - rgb - black) / np.maximum(1.0 - black, 1e-9)
+    cmyk = np.rint(np.concatenate([inks, black], axis=2) * 65535).astype(np.uint16)
+    tifffile.imwrite(
+        tmp_path / "c.tif", np.moveaxis(cmyk, 2, 0), photometric="separated", planarconfig="separate"
+    )
+    got = read_image(tmp_path / "c.tif").pixels.astype(np.float64)
+    assert got.shape == rgb.shape
+    assert np.abs(got - rgb * 65535).max() <= 1.0
+    gray = _photo("gray", 8).astype(np.uint32)
+    gray.flat[:2] = (0, 255)
+    tifffile.imwrite(tmp_path / "w.tif", (255 - gray) * 16843009, photometric="miniswhite")
+    np.testing.assert_array_equal(read_image(tmp_path / "w.tif").pixels, gray.astype(np.uint16) * 257)

@@ -451,7 +451,7 @@ def _tifffile_samples(path: Path) -> NDArray[np.generic]:
     try:
         with _quiet_decoders(), tifffile.TiffFile(path) as tif:
             page = tif.pages[0]
-            arr, axes = page.asarray(), page.axes
+            arr, axes, photometric = page.asarray(), page.axes, int(page.photometric)
     except MemoryError:
         raise
     except (*_DECODE_ERRORS, RuntimeError) as exc:
@@ -464,7 +464,27 @@ def _tifffile_samples(path: Path) -> NDArray[np.generic]:
     if arr.ndim == 3 and axes.startswith("S"):
         # Stored plane by plane: the samples come first.
         arr = np.moveaxis(arr, 0, -1)
-    return np.ascontiguousarray(arr)
+    return np.ascontiguousarray(_as_light(arr, photometric))
+
+
+def _as_light(arr: NDArray[np.generic], photometric: int) -> NDArray[np.generic]:
+    """Samples that say how much light (gray or RGB), from TIFF's inks (CMYK) or
+    gray stored with 0 as white; others as they are. tifffile gives what the
+    file stores, where Pillow and OpenCV convert."""
+    if arr.dtype.kind not in "uf" or photometric not in (_MIN_IS_WHITE, _SEPARATED):
+        return arr
+    top = float(np.iinfo(arr.dtype).max) if arr.dtype.kind == "u" else float(max(arr.max(), 1.0))
+    if photometric == _MIN_IS_WHITE:
+        return (top - arr.astype(np.float64)).astype(arr.dtype)
+    if arr.ndim != 3 or arr.shape[2] < 4:
+        return arr
+    ink = arr[..., :4].astype(np.float64) / top
+    light = (1.0 - ink[..., :3]) * (1.0 - ink[..., 3:4]) * top
+    return np.rint(light).astype(arr.dtype) if arr.dtype.kind == "u" else light.astype(arr.dtype)
+
+
+#: TIFF's photometric interpretations that store ink or darkness, not light.
+_MIN_IS_WHITE, _SEPARATED = 0, 5
 
 
 def _wide_to_16(arr: NDArray[np.floating], *, rgb: bool = False) -> NDArray[np.uint16]:
