@@ -461,7 +461,7 @@ def _candidate_pool(
     if arr.ndim == 3 and arr.shape[2] == 4:
         alpha, covered = _at_scale(_pyramid(arr[..., 3], config.work_size), largest_scale)
         alpha = _unit(alpha, arr.dtype)
-        if partly_transparent(alpha):
+        if partly_transparent(float((alpha < 0.5).mean())):
             scale_rowcol = (covered[0] / alpha.shape[0], covered[1] / alpha.shape[1])
             return _from_alpha(alpha, scale_rowcol, config, all_rocks)
 

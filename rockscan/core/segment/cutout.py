@@ -45,10 +45,11 @@ _RIM_PIXELS = 3
 EDGE_SHARE = 0.01
 
 
-def partly_transparent(alpha: NDArray[np.float32]) -> bool:
-    """Whether an alpha channel (values in [0, 1]) hides enough of the photo to be read."""
+def partly_transparent(share: float) -> bool:
+    """Whether an alpha channel that leaves ``share`` of the photo transparent hides
+    enough of it to be read."""
     low, high = TRANSPARENT_SHARE
-    return low < float((alpha < 0.5).mean()) < high
+    return low < share < high
 
 
 #: Longer side of the grid the transparent pixels' paint is worked out on: the
@@ -83,8 +84,10 @@ def painted(pixels: NDArray[np.generic]) -> tuple[NDArray[np.generic], NDArray[n
 
     if pixels.ndim != 3 or pixels.shape[2] != 4:
         return None
-    opaque = _unit(pixels[..., 3], pixels.dtype) >= 0.5
-    if not partly_transparent(np.where(opaque, np.float32(1), np.float32(0))):
+    # Half-way in the alpha's own type: a float copy of a large photo's alpha costs 4 bytes a pixel.
+    half = np.iinfo(pixels.dtype).max / 2 if pixels.dtype.kind in "ui" else 0.5
+    opaque = pixels[..., 3] >= half
+    if not partly_transparent(1.0 - float(opaque.mean())):
         return None
     rows, cols = opaque.shape
     step = max(1, math.ceil(max(rows, cols) / PAINT_SIZE))
@@ -92,7 +95,8 @@ def painted(pixels: NDArray[np.generic]) -> tuple[NDArray[np.generic], NDArray[n
     colour = np.ascontiguousarray(pixels[..., :3])
     unit = colour if colour.dtype in (np.uint8, np.uint16, np.float32) else _unit(colour, colour.dtype)
     small = cv2.resize(unit, size, interpolation=cv2.INTER_AREA).astype(np.float32)
-    small_opaque = cv2.resize(opaque.astype(np.float32), size, interpolation=cv2.INTER_AREA) >= 0.5
+    opaque8 = opaque.view(np.uint8) * np.uint8(255)
+    small_opaque = cv2.resize(opaque8, size, interpolation=cv2.INTER_AREA) >= 128
     hidden = ~small_opaque
     if hidden.all() or not hidden.any():
         return None
@@ -110,7 +114,8 @@ def painted(pixels: NDArray[np.generic]) -> tuple[NDArray[np.generic], NDArray[n
         info = np.iinfo(colour.dtype)
         paint = np.clip(np.rint(paint), info.min, info.max)
     paint = paint.astype(colour.dtype)
-    out = colour.copy()
+    # The colour is a copy already (the alpha's plane cut off): painted in place.
+    out = colour
     on_rows = np.minimum(np.arange(rows) // step, size[1] - 1)
     on_cols = np.minimum(np.arange(cols) // step, size[0] - 1)
     for r0 in range(0, rows, _BAND):
