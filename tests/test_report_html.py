@@ -139,3 +139,25 @@ def test_the_embedded_provenance_holds_no_markup_and_reads_back():
     assert body is not None and not set("<>&") & set(body.group(1))
     assert json.loads(body.group(1)) == provenance
     assert page.count("<script") == 2  # the provenance, and the page's own script
+
+
+def test_the_page_of_a_running_resume_shows_a_photo_tried_again_once(tmp_path):
+    from rockscan.io.report import ROW_KEYS, ReportJournal
+    from rockscan.run.report import refresh_html
+
+    report = tmp_path / "r.html"
+    row = {
+        **dict.fromkeys(ROW_KEYS),
+        **{"interest": 0.5, "mscore": 0.5, "match": "egg", "nearest": "egg", "angle_deg": 10.0},
+        **{"interesting": False, "segmentation_score": 0.9},
+    }
+    with ReportJournal(report) as journal:
+        journal.append({**row, "path": "a.png"})
+        journal.append({**dict.fromkeys(ROW_KEYS), "path": "late.png", "error": "late.png: file is empty"})
+        # The resume's row for it, while the run goes on.
+        journal.append({**row, "path": "late.png", "interest": 0.9})
+    refresh_html(report)
+    page = report.read_text()
+    assert "file is empty" not in page
+    # Paths are relative to the working folder: each card shows its path the same number of times.
+    assert page.count("late.png") == page.count("a.png") > 0

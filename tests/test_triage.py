@@ -34,7 +34,16 @@ from rockscan.core.superformula import SuperformulaParams
 from rockscan.io import default_spec_path, load_library, read_spec
 from rockscan.io.folders import find_photos
 from rockscan.io.library import read_pending
-from rockscan.io.report import CSV_COLUMNS, ROW_KEYS, ReportJournal, rank_key, read_provenance, read_rows
+from rockscan.io.report import (
+    CSV_COLUMNS,
+    ROW_KEYS,
+    ReportJournal,
+    latest_rows,
+    photo_key,
+    rank_key,
+    read_provenance,
+    read_rows,
+)
 from rockscan.run.backends import _ProcessBackend, _run_backend, held_interrupts
 from rockscan.run.photo import PhotoOutcome
 from rockscan.run.report import finalize_report
@@ -280,6 +289,89 @@ def test_a_row_cut_short_by_a_crash_is_dropped_on_resume(tmp_path):
     assert [r["path"] for r in _rows(path)] == ['a "quoted",\nname']
 
 
+@given(
+    photos=st.lists(st.tuples(st.integers(0, 3), st.integers(0, 4)), min_size=1, max_size=6),
+    order=st.randoms(use_true_random=False),
+)
+def test_the_ranking_keeps_what_replaces_an_error_and_each_rock_once(photos, order):
+    # Each photo: some failed attempts (an error row each), then its rocks if
+    # it was read at last. The rows of an earlier run lie in any order (ranked,
+    # errors last), but a photo's rows of each attempt follow its errors.
+    rows = []
+    for photo, (failures, n_rocks) in enumerate(photos):
+        rows += [(photo, True, 0)] * failures + [(photo, False, index) for index in range(n_rocks)]
+    slots = list(range(len(rows)))
+    order.shuffle(slots)
+    placed = [None] * len(rows)
+    for photo in range(len(photos)):
+        mine = [i for i, r in enumerate(rows) if r[0] == photo]
+        for row, slot in zip(mine, sorted(slots[i] for i in mine), strict=True):
+            placed[slot] = rows[row]
+    expected = [
+        i
+        for i, (photo, error, _) in enumerate(placed)
+        if not error or (photos[photo][1] == 0 and i == max(j for j, r in enumerate(placed) if r[0] == photo))
+    ]
+    keep = latest_rows(
+        np.array([r[0] for r in placed], np.int64),
+        np.array([r[1] for r in placed], bool),
+        np.array([r[0] * 100 + r[2] for r in placed], np.int64),
+    )
+    assert np.flatnonzero(keep).tolist() == expected
+
+
+def test_the_journal_knows_which_photos_failed_last(tmp_path):
+    path = tmp_path / "r.jsonl"
+    row = {**dict.fromkeys(ROW_KEYS), "interest": 1.0, "mscore": 1.0}
+    with ReportJournal(path) as journal:
+        journal.append({**row, "path": "a.png", "error": "unreadable"})
+        journal.append({**row, "path": "b.png", "error": "unreadable"})
+        journal.append([{**row, "path": "b.png", "index": 0}, {**row, "path": "b.png", "index": 1}])
+    journal = ReportJournal(path, resume=True)
+    journal.close()
+    assert journal.failed == {photo_key("a.png")}
+    assert journal.done == {photo_key("a.png"), photo_key("b.png")}
+
+
+@pytest.mark.parametrize("suffix", [".csv", ".html"])
+def test_a_resume_tries_the_photos_that_failed_again(tmp_path, default_lib, suffix):
+    # Error rows counted as done: a photo half copied when the run met it stayed
+    # an error through every resume, unless its row was cut out of the report by hand.
+    root = tmp_path / "photos"
+    good = _render_folder(root, 3, shapes=[(s.name, s.params) for s in read_spec(default_spec_path())][:3])
+    late = root / "late.png"
+    late.write_bytes(good[0].read_bytes()[:300])
+    report = tmp_path / f"r{suffix}"
+    config = TriageConfig(workers=1)
+    first = triage_folder(root, report, default_lib, config)
+    assert first.n_errors == 1 and first.n_retried == 0
+    shutil.copyfile(good[1], late)  # the copy finished
+    config = TriageConfig(workers=1, resume=True)
+    second = triage_folder(root, report, default_lib, config)
+    assert (second.n_resumed, second.n_processed, second.n_retried) == (3, 1, 1)
+    assert (second.n_rows, second.n_errors, second.n_changed) == (4, 0, 0)
+    rows = _rows(report)
+    assert sorted(Path(r["path"]).name for r in rows) == sorted([*(p.name for p in good), "late.png"])
+    assert all(r["error"] is None for r in rows) and [r["rank"] for r in rows] == [1, 2, 3, 4]
+    # Done now: a later resume leaves it be.
+    third = triage_folder(root, report, default_lib, config)
+    assert (third.n_resumed, third.n_processed, third.n_retried) == (4, 0, 0)
+    assert _rows(report) == rows
+
+
+def test_a_photo_that_fails_again_keeps_one_error_row(tmp_path, default_lib):
+    root = tmp_path / "photos"
+    _render_folder(root, 2)
+    (root / "broken.png").write_bytes(b"not a photo")
+    report = tmp_path / "r.jsonl"
+    triage_folder(root, report, default_lib, TriageConfig(workers=1))
+    again = triage_folder(root, report, default_lib, TriageConfig(workers=1, resume=True))
+    assert (again.n_processed, again.n_retried, again.n_rows, again.n_errors) == (1, 1, 3, 1)
+    rows = _rows(report)
+    assert [Path(r["path"]).name for r in rows if r["error"] is not None] == ["broken.png"]
+    assert len(rows) == 3
+
+
 def test_a_foreign_file_is_not_taken_for_a_report(tmp_path):
     path = tmp_path / "r.csv"
     path.write_text("name,value\nx,1\n")
@@ -371,14 +463,29 @@ def test_an_unreachable_scheduler_names_the_address(folder, tmp_path, default_li
 # ---------------------------------------------------------------- nothing lost
 
 
-def test_a_finished_report_resumed_says_so_without_a_progress_line(folder, reference, tmp_path):
+def test_a_finished_report_resumed_says_so_without_a_progress_line(tmp_path):
+    root = tmp_path / "photos"
+    _render_folder(root, 3)
+    report = tmp_path / "report.csv"
+    args = ["triage", str(root), "-o", str(report), "-j", "1"]
+    assert CliRunner().invoke(main, args).exit_code == 0
+    result = CliRunner().invoke(main, [*args, "--resume"])
+    assert "3 photos found, 3 already in the report, 0 classified" in result.stdout
+    # No "0/0 photos" line.
+    assert result.stderr == ""
+
+
+def test_a_resumed_report_tries_its_errors_again_and_ranks_each_photo_once(folder, reference, tmp_path):
     root, _, _ = folder
     report = tmp_path / "report.csv"
     shutil.copyfile(reference[1], report)
     result = CliRunner().invoke(main, ["triage", str(root), "-o", str(report), "-j", "1", "--resume"])
-    assert "55 photos found, 55 already in the report, 0 classified" in result.stdout
-    # No "0/0 photos" line: the errors of the run before are not repeated either.
-    assert result.stderr == ""
+    assert result.exit_code == 1
+    assert (
+        "55 photos found, 50 already in the report, 5 classified (5 of them failed before)" in result.stdout
+    )
+    # The corrupt files fail as before: one error row each, the report as it was.
+    assert report.read_bytes() == reference[1].read_bytes()
 
 
 def test_a_killed_run_resumed_ends_with_every_photo_once(folder, reference, tmp_path):
@@ -403,7 +510,11 @@ def test_a_killed_run_resumed_ends_with_every_photo_once(folder, reference, tmp_
     assert 10 <= len(killed) < 55 and all(r["rank"] is None for r in killed)
     result = CliRunner().invoke(main, ["triage", str(root), "-o", str(report), "-j", "1", "--resume"])
     assert result.exit_code == 1, result.output
-    assert f"{len(killed)} already in the report, {55 - len(killed)} classified" in result.stdout
+    # The corrupt files among the rows before the kill are tried again.
+    failed = sum(r["error"] is not None for r in killed)
+    done = len(killed) - failed
+    retried = f" ({failed} of them failed before)" if failed else ""
+    assert f"{done} already in the report, {55 - done} classified{retried}" in result.stdout
     assert report.read_bytes() == reference[1].read_bytes()
 
 

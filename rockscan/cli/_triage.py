@@ -327,6 +327,14 @@ def _skipped(summary: Any) -> str:
     return f"; {summary.n_skipped} other file{many} skipped ({kinds})"
 
 
+def _retried(summary: Any) -> str:
+    """The summary's note of the photos with an error row that a resume tried again, e.g.
+    `` (3 of them failed before)``, or "" when there were none."""
+    if not summary.n_retried:
+        return ""
+    return f" ({summary.n_retried} of them failed before)"
+
+
 def _print_summary(summary: Any, folder: str, *, to_stderr: bool) -> None:
     from rockscan.io.report import shown_text
 
@@ -336,7 +344,7 @@ def _print_summary(summary: Any, folder: str, *, to_stderr: bool) -> None:
 
     echo(
         f"triage of {folder}: {summary.n_found} photos found, {summary.n_resumed} already in the report, "
-        f"{summary.n_processed} classified in {summary.elapsed_s:.1f} s{_skipped(summary)}"
+        f"{summary.n_processed} classified{_retried(summary)} in {summary.elapsed_s:.1f} s{_skipped(summary)}"
     )
     if summary.n_gone:
         one = summary.n_gone == 1

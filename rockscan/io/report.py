@@ -48,9 +48,13 @@ import tempfile
 from collections.abc import Iterable, Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, BinaryIO
+from typing import TYPE_CHECKING, Any, BinaryIO
 
 from rockscan.core.errors import ParameterError, WriteError
+
+if TYPE_CHECKING:
+    import numpy as np
+    from numpy.typing import NDArray
 
 __all__ = [
     "CSV_COLUMNS",
@@ -228,9 +232,18 @@ def rank_key(row: dict[str, Any]) -> tuple[int, float, float, str, int]:
     return (0, -float(row["interest"]), -float(row["mscore"]), row["path"], index)
 
 
+def _hash(key: str) -> int:
+    return int.from_bytes(
+        hashlib.blake2b(key.encode("utf-8", "surrogateescape"), digest_size=8).digest(), "little", signed=True
+    )
+
+
 def _rock_hash(row: dict[str, Any]) -> int:
-    key = f"{photo_key(row['path'])}\0{row.get('index') or 0}".encode("utf-8", "surrogateescape")
-    return int.from_bytes(hashlib.blake2b(key, digest_size=8).digest(), "little", signed=True)
+    return _hash(f"{photo_key(row['path'])}\0{row.get('index') or 0}")
+
+
+def _photo_hash(row: dict[str, Any]) -> int:
+    return _hash(photo_key(row["path"]))
 
 
 def shown_text(text: str) -> str:
@@ -597,6 +610,10 @@ class ReportJournal:
     done : set of str
         :func:`photo_key` of every photo already in the report (kept from earlier
         runs when resuming).
+    failed : set of str
+        Those of ``done`` whose latest row is an error row: a resume tries them
+        again, and the ranking keeps their rows after the error row
+        (:func:`latest_rows`).
 
     Raises
     ------
@@ -623,6 +640,7 @@ class ReportJournal:
         # The provenance as a JSON round trip gives it (tuples become lists).
         self.provenance = None if provenance is None else json.loads(json.dumps(provenance))
         self.done: set[str] = set()
+        self.failed: set[str] = set()
         exists = self.path.exists() or (self.format in SIDE_JOURNAL and self.report.exists())
         if exists and not (resume or overwrite):
             raise ParameterError(
@@ -664,9 +682,17 @@ class ReportJournal:
                 )
             end = fh.tell()
             for number, (offset, record) in enumerate(_records(fh, self._fmt), 1):
-                self.done.add(photo_key(_decode(record, self._fmt, self.path, number)["path"]))
+                self._note(_decode(record, self._fmt, self.path, number))
                 end = offset + len(record)
         return end
+
+    def _note(self, row: dict[str, Any]) -> None:
+        key = photo_key(row["path"])
+        self.done.add(key)
+        if row.get("error") is not None:
+            self.failed.add(key)
+        else:
+            self.failed.discard(key)
 
     def append(self, row: dict[str, Any] | Iterable[dict[str, Any]]) -> None:
         """Write one photo's row (or rows, one per rock) in a single write.
@@ -693,7 +719,8 @@ class ReportJournal:
                 f"{self.path}: cannot write report ({exc.strerror or exc}); the rows before are kept: "
                 "make room and run again with --resume"
             ) from None
-        self.done.update(photo_key(r["path"]) for r in rows)
+        for r in rows:
+            self._note(r)
 
     def close(self) -> None:
         """Close the journal file."""
@@ -751,26 +778,29 @@ class JournalScan:
     chunks: list[Iterable[JournalEntry]]
 
 
-def journal_entries(fh: BinaryIO, fmt: str, source: Path) -> Iterator[tuple[JournalEntry, int]]:
+def journal_entries(fh: BinaryIO, fmt: str, source: Path) -> Iterator[tuple[JournalEntry, int, int]]:
+    """Each row's sort entry and its rock's and its photo's identity hashes."""
     for ordinal, (offset, record) in enumerate(_records(fh, fmt)):
         row = _decode(record, fmt, source, ordinal + 1)
-        yield (rank_key(row), ordinal, offset, len(record)), _rock_hash(row)
+        yield (rank_key(row), ordinal, offset, len(record)), _rock_hash(row), _photo_hash(row)
 
 
 def scan_journal(journal: Path, fmt: str, spill: contextlib.ExitStack, chunk_rows: int) -> JournalScan:
     """Sort keys of a journal in sorted chunks (spilled to temporary files), and
-    the rows to drop (a rock's later rows)."""
+    the rows to drop (:func:`latest_rows`)."""
     import numpy as np
 
-    # 9 bytes a row: the rock's identity hash and whether it is an error.
-    hashes = array.array("q")
+    # 17 bytes a row: the rock's and the photo's identity hashes, and whether
+    # the row is an error.
+    rocks, photos = array.array("q"), array.array("q")
     flags = bytearray()
     chunk: list[JournalEntry] = []
     chunks: list[Iterable[JournalEntry]] = []
     with open_journal(journal) as fh:
         provenance = read_header(fh, fmt, journal)
-        for entry, rock in journal_entries(fh, fmt, journal):
-            hashes.append(rock)
+        for entry, rock, photo in journal_entries(fh, fmt, journal):
+            rocks.append(rock)
+            photos.append(photo)
             flags.append(entry[0][0])
             chunk.append(entry)
             if len(chunk) >= chunk_rows:
@@ -778,12 +808,48 @@ def scan_journal(journal: Path, fmt: str, spill: contextlib.ExitStack, chunk_row
                 chunk = []
     chunk.sort()
     chunks.append(chunk)
-    codes = np.frombuffer(hashes, dtype=np.int64) if hashes else np.zeros(0, np.int64)
-    keep = np.zeros(codes.size, dtype=bool)
-    keep[np.unique(codes, return_index=True)[1]] = True
+
+    def column(values: array.array) -> NDArray[np.int64]:
+        return np.frombuffer(values, dtype=np.int64) if values else np.zeros(0, np.int64)
+
+    errors = np.frombuffer(bytes(flags), dtype=np.uint8).astype(bool)
+    keep = latest_rows(column(photos), errors, column(rocks))
     drop = frozenset(np.flatnonzero(~keep).tolist())
-    n_errors = int(np.frombuffer(bytes(flags), dtype=np.uint8)[keep].sum()) if flags else 0
-    return JournalScan(provenance, int(keep.sum()), n_errors, drop, chunks)
+    return JournalScan(provenance, int(keep.sum()), int(errors[keep].sum()), drop, chunks)
+
+
+def latest_rows(
+    photos: NDArray[np.int64], errors: NDArray[np.bool_], rocks: NDArray[np.int64]
+) -> NDArray[np.bool_]:
+    """Which rows of a journal a report keeps: no error row a later row of its
+    photo replaces, and each rock once (its first row).
+
+    A resume tries a photo that failed again (``ReportJournal.failed``): its
+    new rows, an error or its rocks however many, come after the error row
+    they replace, wherever the ranking of an earlier run put that row.
+
+    Parameters
+    ----------
+    photos, errors, rocks : (n,) ndarray
+        Each row's photo identity hash, whether it is an error row, and its
+        rock's identity hash, in journal order.
+
+    Returns
+    -------
+    (n,) ndarray of bool
+    """
+    import numpy as np
+
+    n = photos.size
+    keep = np.zeros(n, dtype=bool)
+    if n == 0:
+        return keep
+    _, inverse = np.unique(photos, return_inverse=True)
+    last_row = n - 1 - np.unique(photos[::-1], return_index=True)[1]
+    replaced = errors & (np.arange(n) < last_row[inverse.ravel()])
+    rows = np.flatnonzero(~replaced)
+    keep[rows[np.unique(rocks[rows], return_index=True)[1]]] = True
+    return keep
 
 
 def _spill(entries: list[JournalEntry], journal: Path, stack: contextlib.ExitStack) -> Iterator[JournalEntry]:

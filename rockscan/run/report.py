@@ -185,9 +185,17 @@ def refresh_html(path: str | os.PathLike[str], *, title: str = "rockscan triage"
     best: list[_Negated] = []
     bad: list[_Negated] = []
     n_rows = n_err = 0
+    # A photo tried again after an error: its error row gives way to its later
+    # rows (as in the ranking, rockscan.io.report.latest_rows).
+    error_of: dict[int, int] = {}
+    superseded: set[int] = set()
     with open_journal(journal) as fh:
         provenance = read_header(fh, "jsonl", journal)
-        for entry, _ in journal_entries(fh, "jsonl", journal):
+        for entry, _, photo in journal_entries(fh, "jsonl", journal):
+            if photo in error_of:
+                superseded.add(error_of.pop(photo))
+            if entry[0][0]:
+                error_of[photo] = entry[1]
             n_rows += 1
             n_err += entry[0][0]
             heap = bad if entry[0][0] else best
@@ -198,7 +206,9 @@ def refresh_html(path: str | os.PathLike[str], *, title: str = "rockscan triage"
             elif heap[0] < item:
                 heapq.heapreplace(heap, item)
     entries = sorted(e.entry for e in best) + sorted(e.entry for e in bad)
-    scan = JournalScan(provenance, n_rows, n_err, frozenset(), [entries])
+    n_rows -= len(superseded)
+    n_err -= len(superseded)
+    scan = JournalScan(provenance, n_rows, n_err, frozenset(superseded), [entries])
     try:
         with contextlib.ExitStack() as stack:
             page = _open_page("html", report, scan, stack, title=title, limit=limit, in_progress=True)

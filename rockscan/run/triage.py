@@ -209,6 +209,9 @@ class TriageSummary:
     n_changed : int
         Photos a resumed report holds that were changed after the report was last
         written: their rows are of the photos as they were.
+    n_retried : int
+        Of them, in the report with an error row from an earlier run, and
+        tried again in this one (their new rows replace the error rows).
     """
 
     report: Path
@@ -227,6 +230,7 @@ class TriageSummary:
     skipped_endings: tuple[str, ...] = ()
     n_gone: int = 0
     n_changed: int = 0
+    n_retried: int = 0
 
     @property
     def failed(self) -> bool:
@@ -393,9 +397,13 @@ def _triage_locked(
     # Before the journal is opened: a resume drops a row cut short, and so writes to it.
     written = _modified(journal_path(report))
     run = _TriageRun(report, folder, library, config, observed, progress, on_error)
-    stale = _stale_rows(listing, run.journal.done, written)
-    todo = [p for p in listing.photos if photo_key(p) not in run.journal.done]
-    problems = [(p, msg) for p, msg in listing.problems if photo_key(p) not in run.journal.done]
+    stale = _stale_rows(listing, run.journal.done, run.journal.failed, written)
+    # A photo that failed before is tried again: it may have been half copied,
+    # unreadable to this user, or met a fault since mended; its latest rows count.
+    settled = run.journal.done - run.journal.failed
+    todo = [p for p in listing.photos if photo_key(p) not in settled]
+    problems = [(p, msg) for p, msg in listing.problems if photo_key(p) not in settled]
+    n_retried = sum(photo_key(p) in run.journal.failed for p in (*todo, *(p for p, _ in problems)))
     run.total = len(todo) + len(problems)
     interrupted = False
     failure: RockscanError | None = None
@@ -427,6 +435,7 @@ def _triage_locked(
         report=report,
         n_found=n_found,
         n_resumed=n_found - run.total,
+        n_retried=n_retried,
         n_processed=run.done,
         n_rows=ranked.n_rows,
         n_errors=ranked.n_errors,
@@ -451,17 +460,20 @@ def _modified(path: Path) -> float | None:
         return None
 
 
-def _stale_rows(listing: PhotoListing, done: set[str], written: float | None) -> tuple[int, int]:
+def _stale_rows(
+    listing: PhotoListing, done: set[str], failed: set[str], written: float | None
+) -> tuple[int, int]:
     """Of the photos a resumed report holds, how many are no longer under the
     folder, and how many were changed after the report was last written (at
-    ``written``: a photo replaced under its name keeps its old row); both 0 for
-    a new report."""
+    ``written``: a photo replaced under its name keeps its old row; one that
+    ``failed`` is tried again); both 0 for a new report."""
     if not done or written is None:
         return 0, 0
     found = {photo_key(p) for p in listing.photos} | {photo_key(p) for p, _ in listing.problems}
     changed = 0
     for path in listing.photos:
-        if photo_key(path) in done:
+        key = photo_key(path)
+        if key in done and key not in failed:
             with contextlib.suppress(OSError):
                 changed += os.stat(path).st_mtime > written
     return len(done - found), changed
