@@ -812,7 +812,7 @@ def scan_journal(journal: Path, fmt: str, spill: contextlib.ExitStack, chunk_row
     def column(values: array.array) -> NDArray[np.int64]:
         return np.frombuffer(values, dtype=np.int64) if values else np.zeros(0, np.int64)
 
-    errors = np.frombuffer(bytes(flags), dtype=np.uint8).astype(bool)
+    errors = np.frombuffer(flags, dtype=np.bool_) if flags else np.zeros(0, dtype=bool)
     keep = latest_rows(column(photos), errors, column(rocks))
     drop = frozenset(np.flatnonzero(~keep).tolist())
     return JournalScan(provenance, int(keep.sum()), int(errors[keep].sum()), drop, chunks)
@@ -844,11 +844,28 @@ def latest_rows(
     keep = np.zeros(n, dtype=bool)
     if n == 0:
         return keep
-    _, inverse = np.unique(photos, return_inverse=True)
-    last_row = n - 1 - np.unique(photos[::-1], return_index=True)[1]
-    replaced = errors & (np.arange(n) < last_row[inverse.ravel()])
-    rows = np.flatnonzero(~replaced)
-    keep[rows[np.unique(rocks[rows], return_index=True)[1]]] = True
+    # Few photos fail: the rows of those that did are found by a search in
+    # their sorted hashes, and only they are grouped (memory stays a few
+    # bytes a row beyond the rock hashes' own sort).
+    failed = np.unique(photos[errors])
+    replaced = None
+    if failed.size:
+        at = np.minimum(np.searchsorted(failed, photos), failed.size - 1)
+        rows = np.flatnonzero(failed[at] == photos)
+        del at
+        _, inverse = np.unique(photos[rows], return_inverse=True)
+        last = np.full(failed.size, -1, dtype=np.int64)
+        np.maximum.at(last, inverse.ravel(), rows)
+        later = errors[rows] & (rows < last[inverse.ravel()])
+        if later.any():
+            replaced = rows[later]
+    if replaced is None:
+        keep[np.unique(rocks, return_index=True)[1]] = True
+        return keep
+    kept = np.ones(n, dtype=bool)
+    kept[replaced] = False
+    kept_rows = np.flatnonzero(kept)
+    keep[kept_rows[np.unique(rocks[kept_rows], return_index=True)[1]]] = True
     return keep
 
 
