@@ -55,7 +55,11 @@ from rockscan.core.choices import NOVELTY_METRICS
     metavar="ADDRESS",
     help="Classify on a Dask distributed cluster (tcp://host:8786); its workers must see FOLDER.",
 )
-@click.option("--resume", is_flag=True, help="Continue the report: skip photos already in it.")
+@click.option(
+    "--resume",
+    is_flag=True,
+    help="Continue the report: skip photos already in it, try those that failed again.",
+)
 @click.option("--overwrite", is_flag=True, help="Replace an existing report.")
 @click.option(
     "--observed",
