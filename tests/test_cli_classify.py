@@ -6,8 +6,10 @@ CliRunner and through :func:`rockscan.run.pipeline.classify_path`.
 
 from __future__ import annotations
 
+import io
 import json
 import os
+import shutil
 import subprocess
 import sys
 from pathlib import Path
@@ -243,10 +245,34 @@ def test_dash_misuse_is_a_usage_error(args, stdin, message):
     assert result.exit_code == 2 and message in result.stderr
 
 
-def test_dash_refuses_a_photo_piped_in_for_its_paths(rendered):
-    data = Path(rendered["teardrop"][0]).read_bytes()
-    result = run("-", input=data)
+@pytest.mark.parametrize("suffix", [".png", ".jpg", ".bmp", ".tif"])
+def test_dash_refuses_a_photo_piped_in_for_its_paths(rendered, suffix):
+    pixels = np.asarray(Image.open(rendered["teardrop"][0]).convert("RGB"))[:, :-1]
+    buffer = io.BytesIO()
+    # An odd width: each BMP row ends in NUL padding, and so does the file.
+    Image.fromarray(np.ascontiguousarray(pixels)).save(buffer, format=Image.registered_extensions()[suffix])
+    result = run("-", input=buffer.getvalue())
     assert result.exit_code == 2 and "holds binary data" in result.stderr
+
+
+def test_dash_reads_nul_ended_names_with_newlines_whole(rendered, tmp_path):
+    # find -print0 exists for such names; one of them refused the whole batch as binary data.
+    star = rendered["six-pointed-star"][0]
+    odd = [
+        str(tmp_path / "two\nlines.png"),
+        str(tmp_path / "ends in return\r.png"),
+        str(tmp_path / "BMW 1.png"),
+    ]
+    for name in odd:
+        shutil.copyfile(star, name)
+    result = run("--json", "-", input="".join(f"{n}\0" for n in [star, *odd]).encode())
+    assert result.exit_code == 0, result.output
+    rows = lines(result.stdout)
+    assert [r["path"] for r in rows] == [star, *odd]
+    assert len({r["match"] for r in rows}) == 1
+    # One a line, "BMW 1.png" is a path too.
+    result = run("--json", "-", input=f"{odd[2]}\n")
+    assert result.exit_code == 0 and [r["path"] for r in lines(result.stdout)] == [odd[2]]
 
 
 def test_dash_reads_paths_ended_by_nul_and_after_a_byte_order_mark(rendered):

@@ -189,6 +189,15 @@ def classify(
     sys.exit(1 if failed else 0)
 
 
+#: How PNG, JPEG and TIFF (both byte orders) begin (a BMP: :func:`_is_bmp`).
+_PHOTO_SIGNATURES = (b"\x89PNG\r\n\x1a\n", b"\xff\xd8\xff", b"II*\0", b"MM\0*")
+
+
+def _is_bmp(raw: bytes) -> bool:
+    # "BM" may begin a path: a BMP's header also gives the file's own length.
+    return raw.startswith(b"BM") and len(raw) >= 6 and int.from_bytes(raw[2:6], "little") == len(raw)
+
+
 def _expand_stdin(photos: tuple[str, ...]) -> tuple[str, ...]:
     """Replace a '-' by the paths on standard input (one a line, blank lines skipped)."""
     if photos.count("-") > 1:
@@ -207,19 +216,21 @@ def _expand_stdin(photos: tuple[str, ...]) -> tuple[str, ...]:
     # the locale's encoding still names its file, and never raises.
     raw = stream.buffer.read() if hasattr(stream, "buffer") else os.fsencode(stream.read())
     raw = raw.removeprefix(b"\xef\xbb\xbf")  # a UTF-8 byte-order mark (Notepad) is no part of a path
-    separator = b"\n"
+    # A photo piped in starts with its format's signature, or holds NUL bytes
+    # without ending on one; paths ended by NUL (find -print0) may hold
+    # newlines, carriage returns and spaces, as a file's name may.
+    if raw.startswith(_PHOTO_SIGNATURES) or _is_bmp(raw) or (b"\0" in raw and not raw.endswith(b"\0")):
+        raise click.BadParameter(
+            "'-' reads photo paths from standard input, one a line (or each ended by NUL, as "
+            "find -print0 writes them), but it holds binary data (a photo itself?): give the "
+            "photo's path instead",
+            param_hint="PHOTO",
+        )
     if b"\0" in raw:
-        # Paths ended by NUL (find -print0) hold no newline; a photo's bytes do.
-        if b"\n" in raw or not raw.endswith(b"\0"):
-            raise click.BadParameter(
-                "'-' reads photo paths from standard input, one a line (or each ended by NUL, as "
-                "find -print0 writes them), but it holds binary data (a photo itself?): give the "
-                "photo's path instead",
-                param_hint="PHOTO",
-            )
-        separator = b"\0"
-    read = [line.rstrip("\r") for line in os.fsdecode(raw).split(os.fsdecode(separator))]
-    read = [line for line in read if line.strip()]
+        read = [name for name in os.fsdecode(raw).split("\0") if name]
+    else:
+        read = [line.rstrip("\r") for line in os.fsdecode(raw).split("\n")]
+        read = [line for line in read if line.strip()]
     if not read:
         raise click.BadParameter("'-' given but standard input holds no photo paths", param_hint="PHOTO")
     at = photos.index("-")
