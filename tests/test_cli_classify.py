@@ -441,10 +441,19 @@ def test_usage_errors_exit_two(args, message):
     assert message in result.stderr
 
 
-def test_bad_library_is_one_error_line(rendered, tmp_path):
-    result = run("--library", str(tmp_path / "nothing.npz"), rendered["teardrop"][0])
-    assert result.exit_code == 1
-    assert result.stderr == f"rockscan: error: {tmp_path / 'nothing.npz'}: library file not found\n"
+@pytest.mark.parametrize(
+    ("name", "content", "message"),
+    [("nothing.npz", None, "library file not found"), ("bad.toml", "not a spec", "not valid TOML")],
+)
+def test_a_library_that_cannot_be_loaded_is_a_usage_error(rendered, tmp_path, name, content, message):
+    # It exited 1, a photo's failure, with no line for any photo.
+    library = tmp_path / name
+    if content is not None:
+        library.write_text(content)
+    result = run("--json", "--library", str(library), rendered["teardrop"][0])
+    assert result.exit_code == 2 and result.stdout == ""
+    assert f"Invalid value for '--library' / '-l': {library}: {message}" in result.stderr
+    assert "Traceback" not in result.stderr
 
 
 def test_library_spec_limits_the_answers(rendered, tmp_path):

@@ -130,7 +130,7 @@ def test_match_with_a_spec_as_library_and_the_papers_method(runner, tmp_path):
         (["match", "--params", "2,4,1,1,1"], 2, "unbounded"),
         (["match", "--params", "4,4,2,,2,2"], 2, "5 or 7"),
         (["match", "--radii", "/nonexistent/r.txt"], 1, "not found"),
-        (["match", "--params", "4,4,2,2,2", "--library", "/nonexistent.npz"], 1, "library file not found"),
+        (["match", "--params", "4,4,2,2,2", "--library", "/nonexistent.npz"], 2, "library file not found"),
     ],
 )
 def test_match_errors(runner, args, code, text):

@@ -884,3 +884,14 @@ def test_novel_shapes_a_killed_run_did_not_save_are_kept_and_not_flagged_again(t
     # A torn last line (a write cut short) is dropped.
     pending.write_bytes(b'{"name": "seen-x", "radii": [1.0, 1.')
     assert read_pending(pending) == []
+
+
+def test_a_library_that_cannot_be_loaded_is_a_usage_error_and_writes_no_report(tmp_path):
+    root = tmp_path / "photos"
+    _render_folder(root, 1)
+    report = tmp_path / "r.csv"
+    result = CliRunner().invoke(
+        main, ["triage", str(root), "-o", str(report), "--library", str(tmp_path / "no.npz")]
+    )
+    assert result.exit_code == 2 and "library file not found" in result.stderr
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["photos"]

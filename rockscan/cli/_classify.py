@@ -12,6 +12,7 @@ from typing import Any
 import click
 
 from rockscan.cli._main import (
+    LIBRARY_HINT,
     Number,
     PathName,
     _check_output,
@@ -65,7 +66,7 @@ def match_cmd(
 
     if (params_text is None) == (radii_path is None):
         raise click.UsageError("give exactly one of --params or --radii")
-    lib = _load_library(library_path)
+    lib = _load_library(library_path, option=LIBRARY_HINT)
     n = lib.face_config.n_angles
     if params_text is not None:
         from rockscan.core.errors import ParameterError
@@ -153,7 +154,7 @@ def classify(
     photos = _expand_stdin(photos)
     inputs = (*photos, *([library_path] if library_path else []))
     targets = _plot_targets(plot_path, photos, inputs, overwrite=overwrite) if plot_path is not None else {}
-    lib = _load_library(library_path)
+    lib = _load_library(library_path, option=LIBRARY_HINT)
     config = ClassifyConfig(match=match_config, px_per_mm=px_per_mm)
     failed = 0
     table = None if as_json else _Table(photos, lib.names, shutil.get_terminal_size((120, 24)).columns)

@@ -205,6 +205,10 @@ def _errors(func: Callable[..., Any]) -> Callable[..., Any]:
     return wrapper
 
 
+#: How usage errors name the ``--library`` option (as click names it).
+LIBRARY_HINT = "'--library' / '-l'"
+
+
 def _library_option(func: Callable[..., Any]) -> Callable[..., Any]:
     return click.option(
         "--library",
@@ -317,7 +321,23 @@ def _match_options(func: Callable[..., Any]) -> Callable[..., Any]:
 DEFAULT_LIBRARY_NAME = "default"
 
 
-def _load_library(path: str | None) -> Any:
+def _load_library(path: str | None, *, option: str | None = None) -> Any:
+    """The library at ``path`` (a .npz file, a .toml spec, or the built-in one).
+
+    Given as an ``option`` (``--library``), a library that cannot be loaded is
+    a bad option value, a usage error (exit 2): no photo was at fault.
+    """
+    if option is None:
+        return _library_at(path)
+    from rockscan.core.errors import RockscanError
+
+    try:
+        return _library_at(path)
+    except RockscanError as exc:
+        raise click.BadParameter(str(exc), param_hint=option) from None
+
+
+def _library_at(path: str | None) -> Any:
     from rockscan.core.library import Library
     from rockscan.io import default_library, load_library, read_spec
 

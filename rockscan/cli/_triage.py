@@ -14,6 +14,7 @@ from typing import Any
 import click
 
 from rockscan.cli._main import (
+    LIBRARY_HINT,
     Number,
     PathName,
     _check_output,
@@ -154,7 +155,7 @@ def triage(
         report_path = str(report_target(report_path))
     # `rockscan -q triage` is `triage -q`: the group's -q leaves warnings and errors only.
     quiet = quiet or not log.isEnabledFor(logging.INFO)
-    lib = _load_library(library_path)
+    lib = _load_library(library_path, option=LIBRARY_HINT)
     config = TriageConfig(
         classify=ClassifyConfig(match=match_config, px_per_mm=px_per_mm),
         workers=workers,
