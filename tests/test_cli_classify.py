@@ -333,6 +333,20 @@ def test_px_per_mm_adds_sizes_in_millimetres(rendered):
     assert {k: v for k, v in record.items() if not k.endswith("_mm") and k != "area_mm2"} == plain
 
 
+@pytest.mark.parametrize("px_per_mm", [1e-6, 1e-3, 1e4, 1e5, 1e6])
+def test_sizes_keep_their_digits_over_the_whole_px_per_mm_range(rendered, px_per_mm):
+    # Rounded to 4 decimals, a rock of 9,000 px had area_mm2 0.0 from 1e5 px/mm up,
+    # and equal major and minor axes.
+    path = rendered["teardrop"][0]
+    plain = lines(run("--json", path).stdout)[0]
+    record = lines(run("--json", "--px-per-mm", repr(px_per_mm), path).stdout)[0]
+    assert record["area_mm2"] == pytest.approx(plain["area_px"] / px_per_mm**2, rel=1e-4)
+    assert record["major_axis_mm"] > 1.05 * record["minor_axis_mm"] > 0
+    coarse = lines(run("--json", "--px-per-mm", "1", path).stdout)[0]
+    for key in ("major_axis_mm", "minor_axis_mm", "equivalent_diameter_mm"):
+        assert record[key] == pytest.approx(coarse[key] / px_per_mm, rel=1e-5)
+
+
 @pytest.mark.parametrize("value", ["0", "-1", "many"])
 def test_px_per_mm_must_be_positive(rendered, value):
     result = run("--px-per-mm", value, rendered["teardrop"][0])

@@ -161,3 +161,22 @@ def test_the_page_of_a_running_resume_shows_a_photo_tried_again_once(tmp_path):
     assert "file is empty" not in page
     # Paths are relative to the working folder: each card shows its path the same number of times.
     assert page.count("late.png") == page.count("a.png") > 0
+
+
+def test_a_grains_sizes_show_their_digits_on_its_card():
+    row = {
+        "rank": 1,
+        "path": "grain.png",
+        "interest": 0.5,
+        "match": "egg",
+        "nearest": "egg",
+        "mscore": 0.5,
+        "angle_deg": 10.0,
+        "interesting": False,
+        "segmentation_score": 0.9,
+        "error": None,
+        "equivalent_diameter_mm": 0.0432,
+        "area_mm2": 0.00147,
+    }
+    page = render_html([row], n_rows=1, n_errors=0)
+    assert "0.0432 mm across, 0.00147 mm&sup2;" in page

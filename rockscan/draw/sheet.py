@@ -123,8 +123,9 @@ def _card(row: dict[str, Any], report: Path | None) -> str:
         ]
         if row.get("equivalent_diameter_mm") is not None:
             parts.append(
-                f'<span class="sizes">{row["equivalent_diameter_mm"]:.1f} mm across, '
-                f"{row['area_mm2']:.0f} mm&sup2;</span>"
+                # Three significant digits: a grain under a microscope is 0.0 mm across to one decimal.
+                f'<span class="sizes">{row["equivalent_diameter_mm"]:.3g} mm across, '
+                f"{row['area_mm2']:.3g} mm&sup2;</span>"
             )
         text = "<br>".join(parts)
     return (

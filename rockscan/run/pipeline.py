@@ -136,7 +136,8 @@ class RockResult:
         are those of the traced outline. ``segmentation_score`` is the
         segmenter's calibrated score of the outline. With
         ``px_per_mm``, the sizes of :func:`rockscan.core.measure.outline_sizes` of
-        the traced outline (so that ``area_mm2 = area_px / px_per_mm**2``).
+        the traced outline (so that ``area_mm2 = area_px / px_per_mm**2``), to six
+        significant digits.
         """
         from rockscan.core.measure import outline_sizes
 
@@ -151,7 +152,9 @@ class RockResult:
         }
         if self.px_per_mm is not None:
             sizes = outline_sizes(self.outline.contour_rowcol[:, ::-1], self.px_per_mm)
-            record.update({k: round(v, 4) for k, v in vars(sizes).items()})
+            # Significant digits, not decimals: at 1e5 px/mm a rock of 9,000 px is
+            # 9e-7 mm2, which four decimals made 0.
+            record.update({k: float(f"{v:.6g}") for k, v in vars(sizes).items()})
         return record
 
 
