@@ -131,21 +131,25 @@ def _rendered_scene(seed: int):
 
 
 @pytest.mark.parametrize("seed", [1, 2])
-@pytest.mark.parametrize("hidden", ["erased", "padded", "round"])
+@pytest.mark.parametrize("hidden", ["erased", "padded", "round", "specks", "erased and specks"])
 def test_an_alpha_channel_that_hides_part_of_a_scene_is_not_taken_for_the_rock(hidden, seed):
-    # A photo with ground erased, pasted on a larger transparent canvas, or seen
-    # through a round field of view: the opaque part is the scene, not the rock.
+    # A photo with ground erased, pasted on a larger transparent canvas, seen
+    # through a round field of view, or with pixels here and there transparent
+    # (black, as editors store them): the opaque part is the scene, not the rock.
     # Its frame was outlined, scored 1.0 and matched to a rounded square.
     photo = _rendered_scene(seed)
     rows, cols = photo.pixels.shape[:2]
     alpha = np.full((rows, cols), 255, np.uint8)
     offset = (0, 0)
-    if hidden == "erased":
+    if hidden.startswith("erased"):
         alpha[:, 250:] = 0
     elif hidden == "round":
         yy, xx = np.mgrid[:rows, :cols]
         alpha[(yy - 120) ** 2 + (xx - 150) ** 2 > 118**2] = 0
+    if hidden.endswith("specks"):
+        alpha[np.random.default_rng(seed).random((rows, cols)) < 0.1] = 0
     rgba = np.dstack([photo.pixels, alpha])
+    rgba[alpha == 0, :3] = 0
     if hidden == "padded":
         offset = (40, 70)
         canvas = np.zeros((rows + 90, cols + 150, 4), np.uint8)

@@ -322,12 +322,16 @@ def _scene_behind_alpha(
     """For a partly transparent photo whose alpha does not cut its rock out (a
     turned, padded or vignetted scene, ``rockscan.core.segment.cutout``), the
     segmentation of the scene's colour, its transparent pixels painted as its
-    ground; None for any other photo (a cut-out's alpha is its outline)."""
+    ground; so too for a photo whose transparent pixels are only specks; None
+    for any other photo (a cut-out's alpha is its outline)."""
     arr = _check_pixels(pixels)
     scene = painted(arr)
     if scene is None:
         return None
     colour, edge_zone = scene
+    if edge_zone is None:
+        # Only specks are transparent: the photo is its colour, the specks painted.
+        return segment(colour, config, all_rocks=all_rocks)
     try:
         found = segment(colour, config)
     except NoRockFoundError:

@@ -61,7 +61,14 @@ PAINT_SIZE = 1024
 _BAND = 256
 
 
-def painted(pixels: NDArray[np.generic]) -> tuple[NDArray[np.generic], NDArray[np.bool_]] | None:
+#: Transparent regions smaller than this share of the photo are specks, not a
+#: cut: pixels a tool left transparent here and there, or a palette's
+#: transparent colour falling on grains of the ground. They are painted, and
+#: otherwise the photo is read as if they were opaque.
+SPECK_SHARE = 0.002
+
+
+def painted(pixels: NDArray[np.generic]) -> tuple[NDArray[np.generic], NDArray[np.bool_] | None] | None:
     """The colour of a partly transparent RGBA photo with each transparent pixel
     painted the colour of the nearest opaque one, blurred there, and where the
     rim and the transparent region lie; None for a photo without such an alpha.
@@ -75,9 +82,11 @@ def painted(pixels: NDArray[np.generic]) -> tuple[NDArray[np.generic], NDArray[n
     -------
     (rows, cols, 3) ndarray of ``pixels``' dtype
         The painted photo.
-    (r, c) ndarray of bool
+    (r, c) ndarray of bool, or None
         Its edge zone, the transparent pixels and the rim, on a grid of at most
-        ``PAINT_SIZE`` on its longer side.
+        ``PAINT_SIZE`` on its longer side; None when the transparent pixels
+        are specks (``SPECK_SHARE``) that cut nothing out: the painted photo
+        is then the photo.
     """
     import cv2
     from scipy import ndimage
@@ -101,9 +110,10 @@ def painted(pixels: NDArray[np.generic]) -> tuple[NDArray[np.generic], NDArray[n
     if hidden.all() or not hidden.any():
         return None
     rim_width = max(_RIM_PIXELS, round(RIM * max(size)))
-    # Distance inside the opaque part to the nearest transparent pixel.
-    depth = cv2.distanceTransform(small_opaque.astype(np.uint8), cv2.DIST_L2, 3)
-    rim = small_opaque & (depth <= rim_width)
+    cut = _without_specks(hidden)
+    # Distance inside the opaque part (specks count as opaque) to the nearest cut.
+    depth = cv2.distanceTransform((~cut).view(np.uint8), cv2.DIST_L2, 3)
+    rim = ~cut & (depth <= rim_width)
     # The rim's ground runs on past the alpha's edge, with no edge of its own there.
     _, (near_rows, near_cols) = ndimage.distance_transform_edt(hidden, return_indices=True)
     paint = cv2.GaussianBlur(small[near_rows, near_cols], (0, 0), rim_width)
@@ -122,7 +132,19 @@ def painted(pixels: NDArray[np.generic]) -> tuple[NDArray[np.generic], NDArray[n
         band = ~opaque[r0 : r0 + _BAND]
         if band.any():
             out[r0 : r0 + _BAND][band] = paint[on_rows[r0 : r0 + _BAND]][:, on_cols][band]
-    return out, hidden | rim
+    if not partly_transparent(float(cut.mean())):
+        return out, None
+    return out, cut | rim
+
+
+def _without_specks(hidden: NDArray[np.bool_]) -> NDArray[np.bool_]:
+    """The transparent regions of at least ``SPECK_SHARE`` of the grid."""
+    import cv2
+
+    _, labels, stats, _ = cv2.connectedComponentsWithStats(hidden.view(np.uint8), connectivity=8)
+    large = stats[:, cv2.CC_STAT_AREA] >= SPECK_SHARE * hidden.size
+    large[0] = False
+    return large[labels]
 
 
 def stands_inside(found: Segmentation, edge_zone: NDArray[np.bool_]) -> bool:
