@@ -177,6 +177,48 @@ def test_a_folder_of_an_earlier_render_is_refused_or_replaced_whole(tmp_path):
     assert replaced.stderr.endswith(f"rockscan: wrote 2 photos with truth (seed 99) to {out}\n")
 
 
+@pytest.mark.parametrize("overwrite", [[], ["--overwrite"]])
+def test_a_users_own_file_under_a_name_the_render_writes_is_never_replaced(tmp_path, overwrite):
+    # It was replaced without a word, exit 0: "--overwrite" is for an earlier render's files.
+    out = tmp_path / "out"
+    out.mkdir()
+    (out / "0001-three-faced-blunt.png").write_bytes(b"my photo")
+    (out / "0003-circle.json").write_text("my notes")
+    result = render("-o", str(out), "-n", "4", "--size", "64x80", *overwrite)
+    assert result.exit_code == 2
+    assert "holds 0001-three-faced-blunt.png and 1 more, not of an earlier render" in result.stderr
+    assert sorted(p.name for p in out.iterdir()) == ["0001-three-faced-blunt.png", "0003-circle.json"]
+    assert (out / "0001-three-faced-blunt.png").read_bytes() == b"my photo"
+    scenes = render("-o", str(out), "-n", "1", "--rocks", "3", "--size", "64x80")
+    assert scenes.exit_code == 0, scenes.output
+
+
+def test_a_file_system_that_refuses_writes_is_one_line(tmp_path, monkeypatch):
+    # On a read-only mount the temporary file is never made, and removing it
+    # fails too (EROFS): that second error escaped as a traceback.
+    import errno
+    import os as os_module
+    from pathlib import Path as PathType
+
+    def read_only(*args, **kwargs):
+        raise OSError(errno.EROFS, "Read-only file system")
+
+    real_open = open
+
+    def refusing_open(file, mode="r", *args, **kwargs):
+        if "w" in mode and ".tmp" in os_module.fspath(file):
+            read_only()
+        return real_open(file, mode, *args, **kwargs)
+
+    monkeypatch.setattr("builtins.open", refusing_open)
+    monkeypatch.setattr(PathType, "unlink", read_only)
+    result = render("-o", str(tmp_path / "out"), "-n", "1", "--size", "64x80")
+    assert result.exit_code == 1
+    assert result.stderr.strip().endswith("cannot write the photo (Read-only file system)")
+    # Exited, not raised: an uncaught error is the runner's exception.
+    assert isinstance(result.exception, SystemExit) and "Traceback" not in result.stderr
+
+
 def test_off_a_terminal_a_long_render_logs_its_progress(tmp_path):
     result = render("-o", str(tmp_path / "a"), "-n", "20", "--size", "32x32", "--shape", "circle")
     assert result.exit_code == 0, result.output

@@ -161,7 +161,7 @@ def render_cmd(
     A folder that holds an earlier render is refused, unless --overwrite,
     which first removes that render's photos and truth (other files stay).
     """
-    from rockscan.core.render import render_numbered
+    from rockscan.core.render import numbered_stem, render_numbered
     from rockscan.io import default_spec_path, read_spec
     from rockscan.io.atomic import write_bytes_atomic
     from rockscan.io.photos import write_photo
@@ -195,9 +195,10 @@ def render_cmd(
     suffix = "." + (fmt or ("jpg" if jpeg_quality else "png"))
     if suffix in (".jpg", ".bmp") and config.bit_depth == 16:
         raise click.UsageError(f"{suffix[1:].upper()} photos are 8 bits; use --bits 8 or --format png/tif")
-    _prepare_folder(out_dir, overwrite)
     named = [(s.name, s.params) for s in shapes]
     total = count if count is not None else len(shapes)
+    stems = [numbered_stem([name for name, _ in named], i, rocks) for i in range(total)]
+    _prepare_folder(out_dir, overwrite, [name for stem in stems for name in (stem + suffix, stem + ".json")])
     for i in _progress(range(total), total, unit="photo", verb="rendered"):
         stem, photo = render_numbered(named, config, seed=seed, index=i, rocks=rocks)
         write_photo(photo, os.path.join(out_dir, stem + suffix))
@@ -222,8 +223,13 @@ def _render_config(size: str, **settings: object) -> RenderConfig:
         raise click.UsageError(str(exc)) from None
 
 
-def _prepare_folder(out_dir: str, overwrite: bool) -> None:
-    """Make the output folder; remove an earlier render's photos if ``overwrite``, else refuse them."""
+def _prepare_folder(out_dir: str, overwrite: bool, names: list[str]) -> None:
+    """Make the output folder; remove an earlier render's photos if ``overwrite``, else refuse them.
+
+    Refused too, before anything is drawn: a folder that cannot be written in,
+    and one holding a file of its own under a name the render writes (``names``):
+    ``--overwrite`` removes an earlier render's files, never the user's.
+    """
     from rockscan.core.errors import WriteError
 
     earlier = _earlier_render(out_dir)
@@ -232,6 +238,16 @@ def _prepare_folder(out_dir: str, overwrite: bool) -> None:
             f"{out_dir} holds {len(earlier) // 2} photos of an earlier render; give --overwrite to "
             "replace them (they are all removed first), or another folder"
         )
+    if os.path.isdir(out_dir):
+        if not os.access(out_dir, os.W_OK | os.X_OK):
+            raise click.BadParameter(f"cannot write in folder {out_dir!r}", param_hint="-o")
+        taken = sorted(set(names) & set(os.listdir(out_dir)) - set(earlier))
+        if taken:
+            more, them = (f" and {len(taken) - 1} more", "them") if len(taken) > 1 else ("", "it")
+            raise click.UsageError(
+                f"{out_dir} holds {taken[0]}{more}, not of an earlier render, under a name this "
+                f"render writes; move {them}, or render to another folder"
+            )
     try:
         os.makedirs(out_dir, exist_ok=True)
         for name in earlier:

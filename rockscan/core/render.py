@@ -25,6 +25,7 @@ from rockscan.core.superformula import SuperformulaParams, degenerate_rays, shap
 __all__ = [
     "RenderConfig",
     "RenderedPhoto",
+    "numbered_stem",
     "random_superformula",
     "render_numbered",
     "render_photo",
@@ -419,12 +420,19 @@ def render_numbered(
     if rocks < 1:
         raise ParameterError(f"rocks must be at least 1, got {rocks}")
     rng = np.random.default_rng([seed, index])
+    stem = numbered_stem([name for name, _ in shapes], index, rocks)
     if rocks == 1:
         name, params = shapes[index % len(shapes)]
-        return f"{index:04d}-{name}", render_photo(params, config, rng=rng, name=name)
+        return stem, render_photo(params, config, rng=rng, name=name)
     chosen = [shapes[int(j)] for j in rng.integers(0, len(shapes), rocks)]
     photo = render_scene([p for _, p in chosen], config, rng=rng, names=[n for n, _ in chosen])
-    return f"{index:04d}-scene", photo
+    return stem, photo
+
+
+def numbered_stem(names: Sequence[str], index: int, rocks: int = 1) -> str:
+    """The file stem of photo ``index`` of :func:`render_numbered`: ``NNNN-SHAPE``,
+    or ``NNNN-scene`` for several rocks."""
+    return f"{index:04d}-{names[index % len(names)] if rocks == 1 else 'scene'}"
 
 
 class _Scene:

@@ -94,7 +94,10 @@ def atomic_file(path: str | os.PathLike[str], *, what: str = "file") -> Iterator
     except OSError as exc:
         raise WriteError(f"{path}: cannot write {what} ({exc.strerror or exc})") from None
     finally:
-        tmp.unlink(missing_ok=True)
+        # On a read-only file system the temporary file was never made, and asking
+        # to remove it fails too (EROFS, not "no such file").
+        with contextlib.suppress(OSError):
+            tmp.unlink(missing_ok=True)
 
 
 def write_bytes_atomic(path: str | os.PathLike[str], data: bytes, *, what: str = "file") -> None:
