@@ -61,12 +61,27 @@ def test_build_errors_are_one_line(runner, tmp_path):
     assert result.exit_code == 1
     assert result.stderr.count("\n") == 1 and "n1 must be non-zero" in result.stderr
     assert "Traceback" not in result.output
-    missing_ref = runner.invoke(
-        main, ["library", "build", str(default_spec_path()), "-o", "x.npz", "--face", "information-shape"]
-    )
-    assert missing_ref.exit_code == 1 and "--reference" in missing_ref.stderr
     usage = runner.invoke(main, ["library", "build", str(default_spec_path())])
     assert usage.exit_code == 2
+
+
+@pytest.mark.parametrize(
+    ("options", "message"),
+    [
+        (["--face", "information-shape"], "needs --reference NAME"),
+        (["--face", "information-shape", "--reference", "nope"], "'nope' is not a Superformula shape"),
+        (["--reference", "circle"], "--reference is for --face information-shape"),
+        (["--resolution", "10"], "resolution must be at most half of ray_length"),
+        # Refused from the options: built first, it took 2 GB (20 GB at 1e-5) before the refusal.
+        (["--resolution", "0.0001"], "would take at least 403,200,000 bytes, past the 268,435,456"),
+    ],
+)
+def test_build_options_at_fault_are_usage_errors(runner, tmp_path, options, message):
+    # They exited 1, a failure, where a bad option value is a usage error.
+    out = tmp_path / "l.npz"
+    result = runner.invoke(main, ["library", "build", str(default_spec_path()), "-o", str(out), *options])
+    assert result.exit_code == 2 and message in result.stderr
+    assert not out.exists()
 
 
 def test_show_refuses_a_corrupt_library(runner, tmp_path):

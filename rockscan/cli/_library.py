@@ -105,25 +105,40 @@ def library_build(
     tolerance: float,
 ) -> None:
     """Build a library file from a spec (TOML with [[shape]] tables), with cutoffs calibrated for it."""
-    from rockscan.core.errors import SpecError
+    from rockscan.core.errors import ParameterError
     from rockscan.core.information import FaceConfig
     from rockscan.io import read_spec, save_library
+    from rockscan.io.library import check_library_size
     from rockscan.run.pipeline import library_from_spec
 
     _check_output(output, "--output", suffixes=(".npz",), inputs=(spec,))
 
     shapes = read_spec(spec)
     ref_params = None
+    # The options are at fault here, not the spec: usage errors (exit 2).
     if face_kind == "information-shape":
         if reference is None:
-            raise SpecError("--face information-shape needs --reference NAME (a shape of the spec)")
+            raise click.UsageError("--face information-shape needs --reference NAME (a shape of the spec)")
         found = [s for s in shapes if s.name == reference and s.params is not None]
         if not found:
-            raise SpecError(f"--reference {reference!r} is not a Superformula shape of {spec}")
+            raise click.BadParameter(
+                f"{reference!r} is not a Superformula shape of {spec}", param_hint="--reference"
+            )
         ref_params = found[0].params
-    config = FaceConfig(
-        kind=face_kind, sigma=sigma, n_angles=n_angles, resolution=resolution, grid=grid, reference=ref_params
-    )
+    elif reference is not None:
+        raise click.UsageError("--reference is for --face information-shape")
+    try:
+        config = FaceConfig(
+            kind=face_kind,
+            sigma=sigma,
+            n_angles=n_angles,
+            resolution=resolution,
+            grid=grid,
+            reference=ref_params,
+        )
+        check_library_size(len(shapes), config.face_shape, components)
+    except ParameterError as exc:
+        raise click.UsageError(str(exc)) from None
     lib = library_from_spec(shapes, face_config=config, n_components=components, tolerance=tolerance)
     save_library(lib, output)
     cutoffs = lib.cutoffs

@@ -222,6 +222,33 @@ def _library_from(meta: dict[str, object], arrays: dict[str, NDArray], path: Pat
     return library
 
 
+def check_library_size(n_shapes: int, face_shape: tuple[int, ...], n_components: int | None = None) -> None:
+    """Refuse, before a library is built, one whose file would be past its budget.
+
+    The file holds at least the eigenfaces and their mean, ``face_shape``
+    floats each: known from the options alone, where building
+    the library first would take many times as much memory (a resolution of
+    1e-5 took 20 GB) only to be refused by :func:`save_library`.
+
+    Raises
+    ------
+    ParameterError
+        If those arrays alone are past the budget.
+    """
+    from rockscan.core.errors import ParameterError
+
+    face = int(np.prod(face_shape))
+    # A basis of n centred faces has at most n - 1 eigenfaces.
+    kept = max(0, n_shapes - 1) if n_components is None else min(n_components, max(0, n_shapes - 1))
+    size = 8 * face * (kept + 1)
+    budget = _budget({"names": [""] * n_shapes, "face": {"n_angles": int(face_shape[0])}})
+    if size > budget:
+        raise ParameterError(
+            f"the library would take at least {size:,} bytes, past the {budget:,} a library file may hold "
+            f"(a face of {' x '.join(map(str, face_shape))}: fewer rays, coarser sections or fewer shapes)"
+        )
+
+
 def _budget(meta: dict[str, object]) -> int:
     """Bytes the arrays of a library file may take: ``MAX_ARCHIVE_BYTES``, and for a
     library of more than ``EXACT_LIMIT`` shapes what its per-shape arrays can take
