@@ -380,3 +380,24 @@ def test_a_drop_built_from_its_formula_accepts_the_papers_noise():
     assert accepted >= 0.95
     assert accepted > np.mean([match_radii(r, centroid_only).interesting for r in samples])
     assert lib.calibration.cutoffs[0] > centroid_only.calibration.cutoffs[0]
+
+
+def test_one_spiky_shape_does_not_set_every_other_shapes_cutoff_to_zero(default_specs):
+    # Its own harmonics filled the noise band: the noise it implied excused
+    # every other shape's distance, and 12 of the 14 default shapes showed cutoff 0.
+    from rockscan.run.pipeline import library_from_spec
+
+    spiky = ShapeSpec("spiky", SuperformulaParams(m1=7.0, m2=7.0, n1=0.554, n2=7.945, n3=7.945))
+    plain = library_from_spec(list(default_specs))
+    lib = library_from_spec([*default_specs, spiky])
+    n = len(plain)
+    assert np.all(lib.cutoffs[:n] > 0.5 * plain.cutoffs)
+    rng = np.random.default_rng(4)
+    for k in range(n):
+        samples = simulate_radii(np.repeat(lib.radii[k : k + 1], 8, axis=0), 0.1, rng=rng)
+        matches = [match_radii(r, lib) for r in samples]
+        assert sum(m.nearest == lib.names[k] for m in matches) >= 6
+        assert sum(m.interesting and m.nearest == lib.names[k] for m in matches) >= 6
+    # Nor is everything accepted now: a four-pointed star is none of them.
+    far = shape_radii(SuperformulaParams(m1=4.0, m2=4.0, n1=0.3, n2=0.3, n3=0.3), 360)
+    assert not match_radii(far, lib).interesting

@@ -384,7 +384,8 @@ class SensorMetric:
         measured = simulate_radii(radii[pick], max(float(tolerance), 0.02), rng=rng)
         own = metric.squared_distances(measured, pick).min(axis=1)
         band_power = metric._band_power(measured)
-        gain = float(np.mean(own) / max(np.mean(band_power), 1e-300))
+        usual = _usual_shapes(own, band_power, pick)
+        gain = float(np.mean(own[usual]) / max(np.mean(band_power[usual]), 1e-300))
         return cls(
             weights=weights,
             spectra=spectra,
@@ -392,7 +393,7 @@ class SensorMetric:
             tolerance=float(tolerance),
             noise_band=band,
             noise_gain=gain,
-            noise_floor=float(np.mean(own)),
+            noise_floor=float(np.mean(own[usual])),
         )
 
     def _band_power(self, radii: ArrayLike) -> NDArray[np.float64]:
@@ -653,6 +654,32 @@ class Calibration:
     def to_dict(self) -> dict[str, object]:
         """The scalar settings, JSON-able (the arrays are stored beside them)."""
         return {"tolerance": self.tolerance, "seed": self.seed, "version": self.version, "note": self.note}
+
+
+def _usual_shapes(
+    own: NDArray[np.float64], band_power: NDArray[np.float64], pick: NDArray[np.intp]
+) -> NDArray[np.bool_]:
+    """The samples whose shape's noise reads as the library's does.
+
+    A shape whose own harmonics fill the noise band (a spiky one among smooth
+    ones) shows there far more power than its noise: its ratio of noise
+    distance to band power lies ``_OWN_BAND`` times the shapes' median or more.
+    Let into the gain, it made every other shape's noise seem larger than any
+    distance, and their distances 0: one such shape in a library set the
+    cutoffs of the rest to 0. Where no shape is so, every sample counts.
+    """
+    ratio = own / np.maximum(band_power, 1e-300)
+    shapes = np.unique(pick)
+    per_shape = np.array([np.median(ratio[pick == k]) for k in shapes])
+    usual = shapes[per_shape <= _OWN_BAND * np.median(per_shape)]
+    return np.isin(pick, usual)
+
+
+#: How far past the shapes' median ratio of noise distance to band power a
+#: shape's may lie for its samples to set the noise gain (:func:`_usual_shapes`):
+#: the default library's shapes lie within 1.9 times it; a spiky shape among
+#: them, 22 times.
+_OWN_BAND = 4.0
 
 
 def cutoff_at(calibration: Calibration, shape: int, noise: float) -> float:
