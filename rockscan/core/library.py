@@ -423,6 +423,18 @@ class Library:
         """Per-shape cutoffs on the sensor distance at the tolerance's noise, ``(n_shapes,)``."""
         return self.calibration_in_force.cutoffs
 
+    @property
+    def holds_its_faces(self) -> bool:
+        """Whether face space holds the library's faces well enough to turn a
+        sample against: all of them (as many eigenfaces as the shapes' faces
+        span, one fewer than the shapes), or a large library's streamed basis
+        of ``STREAM_COMPONENTS`` (on 2,000 shapes its angles err as little as
+        the shapes' own faces give: median 0.10 against 0.09 degrees). A
+        library built with fewer (``n_components`` of 1-3 for the default
+        shapes) holds blurred projections that fit a turned sample at
+        spurious angles."""
+        return self.basis.n_components >= min(len(self) - 1, STREAM_COMPONENTS)
+
     @cached_property
     def reference_map(self) -> NDArray[np.float64]:
         """The reference information ``H_ref`` of every face (see information.py)."""

@@ -365,12 +365,39 @@ class ScanTemplates:
         """
         spectrum = np.fft.rfft(q, axis=0) if spectrum is None else spectrum
         with_mean = self._correlate(spectrum, self.mean_spectrum)[:, 0]
+        return self._face_norm_sq(q) - 2.0 * with_mean + self.mean_norm_sq
+
+    def distances_to_face(
+        self, q: NDArray[np.float64], weighted: NDArray[np.float64], target: NDArray[np.float64]
+    ) -> NDArray[np.float64]:
+        """``||Gamma_a - F||**2`` for every rotation a, to any face ``F``.
+
+        Parameters
+        ----------
+        q : (n_angles, n_sections) ndarray of float
+            The sample term of the face.
+        weighted : (n_angles, n_sections) ndarray of float
+            ``W * F``: the target face times the reference information.
+        target : (n_angles, n_sections) ndarray of float
+            ``F``, which face space need not hold (a library shape's own face
+            when the library keeps fewer eigenfaces than its shapes need).
+
+        Returns
+        -------
+        dist_sq : (n_angles,) ndarray of float
+        """
+        with_target = self._correlate(
+            np.fft.rfft(q, axis=0), _template_spectra(weighted[None], np.complex128)
+        )
+        dist_sq = self._face_norm_sq(q) - 2.0 * with_target[:, 0] + float(np.sum(target * target))
+        return np.maximum(dist_sq, 0.0, out=dist_sq)
+
+    def _face_norm_sq(self, q: NDArray[np.float64]) -> NDArray[np.float64]:
+        """``||Gamma_a||**2`` for every rotation a."""
         if self.weight_sq_rays is not None:
-            face_sq = np.full(q.shape[0], float(np.sum(q * q @ self.weight_sq_rays)))
-        else:
-            assert self.weight_sq_spectrum is not None
-            face_sq = self._correlate(np.fft.rfft(q * q, axis=0), self.weight_sq_spectrum)[:, 0]
-        return face_sq - 2.0 * with_mean + self.mean_norm_sq
+            return np.full(q.shape[0], float(np.sum(q * q @ self.weight_sq_rays)))
+        assert self.weight_sq_spectrum is not None
+        return self._correlate(np.fft.rfft(q * q, axis=0), self.weight_sq_spectrum)[:, 0]
 
     def _correlate(
         self, spectrum: NDArray[np.complex128], templates: NDArray[np.complexfloating]
@@ -559,7 +586,7 @@ def match_radii(radii: ArrayLike, library: Library, config: MatchConfig | None =
             dist = _scan(radii, library, metrics, scan=config.scan, q=q, shapes=alone)
             col = 0
             best_shift[k] = int(np.argmin(dist[w_metric][:, 0]))
-    angles, angle_deg = _angles(config, library, dist, col, best_shift, k)
+    angles, angle_deg = _angles(config, library, dist, col, best_shift, k, q)
     face = _face_at(radii, library, int(best_shift[k]), q)
     eps_k, dffs = library.basis.distances_and_residual(face, shapes=[k])
     eps_best, residual = float(eps_k[0]), float(dffs)
@@ -642,19 +669,29 @@ def _angles(
     col: int,
     best_shift: NDArray[np.int64],
     k: int,
+    q: NDArray[np.float64] | None = None,
 ) -> tuple[NDArray[np.float64], float]:
     """Every shape's best angle, and the nearest shape's refined on ``angle_metric``.
 
     Every angle alpha + j*360/order fits a shape of that symmetry: each is
     reported as the smallest, so that equal photos give equal numbers; a circle
     fits at every angle and gets 0 (:func:`rockscan.core.polar.fold_angle`).
+
+    A library of fewer eigenfaces than its shapes need holds in face space
+    only blurred copies of its faces, which fit a turned sample about as well
+    at many angles: the nearest shape's whole-face distance (``"face"``) is
+    then taken to its own face, from its radii (``q``: the sample's polar term).
     """
     step_deg = 360.0 / library.face_config.n_angles
     if not config.scan:
         return np.zeros(best_shift.size), 0.0
     # NaN where a shape's shift was estimated, not scanned: it stays NaN.
     angles = fold_angle(best_shift * step_deg, library.symmetry)
-    along = dist[config.angle_metric][:, col]
+    if config.angle_metric == "face" and q is not None and not library.holds_its_faces:
+        own = information_face(library.radii[k], library.face_config)
+        along = np.sqrt(library.scan_templates.distances_to_face(q, library.reference_map * own, own))
+    else:
+        along = dist[config.angle_metric][:, col]
     shift_k = int(np.argmin(along))
     shift = float(shift_k) + (_parabola_offset(along**2, shift_k) if config.refine else 0.0)
     angle_deg = float(fold_angle(shift * step_deg, library.symmetry[k]))
