@@ -209,3 +209,20 @@ def test_examples_copies_the_photos_and_refuses_to_replace_them(runner, tmp_path
     assert runner.invoke(main, ["examples", str(out), "--overwrite"]).exit_code == 0
     classified = runner.invoke(main, ["classify", "--json", str(out / "coin.png")])
     assert json.loads(classified.stdout)["nearest"] == "circle"
+
+
+def test_show_keeps_its_columns_in_line_for_a_long_name(runner, tmp_path):
+    spec = tmp_path / "names.toml"
+    spec.write_text(
+        '[[shape]]\nname = "site-12-meteorite-candidate-a"\nm1 = 3\nm2 = 3\nn1 = 2\nn2 = 5\nn3 = 5\n'
+        '[[shape]]\nname = "circle"\nm1 = 0\nm2 = 0\nn1 = 1\nn2 = 1\nn3 = 1\n'
+    )
+    result = runner.invoke(main, ["library", "show", str(spec)])
+    assert result.exit_code == 0, result.output
+    header, *rows = result.output.splitlines()[1:4]
+    width = header.index("symmetry") - 1
+    for row, (name, order) in zip(
+        rows, [("site-12-meteorite-candidate-a", "3"), ("circle", "circle")], strict=True
+    ):
+        assert row[:width].rstrip() == name and row[width] == " "
+        assert row[width + 1 : width + 9].strip() == order

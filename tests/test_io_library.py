@@ -262,6 +262,12 @@ def test_radii_files(tmp_path):
     np.testing.assert_allclose(read_radii(tmp_path / "bom.csv"), np.arange(1.0, 9.0))
     np.save(tmp_path / "r.npy", np.arange(1.0, 21.0))
     assert read_radii(tmp_path / "r.npy").size == 20
+    # numpy.savetxt's header and notes after a '#' were "could not convert string to float".
+    np.savetxt(tmp_path / "saved.txt", np.arange(1.0, 13.0), header="radii of rock 7")
+    with open(tmp_path / "saved.txt", "a") as fh:
+        fh.write("13  # the last ray\n")
+    np.testing.assert_allclose(read_radii(tmp_path / "saved.txt"), np.arange(1.0, 14.0))
+    np.testing.assert_allclose(read_radii(tmp_path / "saved.txt"), np.loadtxt(tmp_path / "saved.txt"))
     (tmp_path / "bad.txt").write_text("1 2 three")
     with pytest.raises(ParameterError, match="cannot read radii"):
         read_radii(tmp_path / "bad.txt")

@@ -202,8 +202,10 @@ def library_show(lib: str, plot_path: str | None, overwrite: bool, as_json: bool
             f"face {face.kind} on a {face.grid} grid {'x'.join(map(str, face.face_shape))}, "
             f"sigma {face.sigma:g}; cutoffs for {100 * library_obj.tolerance:g}% outline noise"
         )
+        # As wide as the longest name: a longer one pushed its row's columns out of line.
+        width = max(22, *(len(name) for name in library_obj.names))
         click.echo(
-            f"{'name':<22} {'symmetry':>8} {'interest':>8} {'cutoff':>7} {'spacing':>7}  "
+            f"{'name':<{width}} {'symmetry':>8} {'interest':>8} {'cutoff':>7} {'spacing':>7}  "
             "parameters (m1 m2 n1 n2 n3 a b)"
         )
         for i, name in enumerate(library_obj.names):
@@ -213,7 +215,7 @@ def library_show(lib: str, plot_path: str | None, overwrite: bool, as_json: bool
             gap = f"{spacing[i]:7.3g}" if np.isfinite(spacing[i]) else f"{'-':>7}"
             mark = " (crowded)" if crowded[i] else ""
             click.echo(
-                f"{name:<22} {'circle' if order == 0 else order:>8} {library_obj.interest[i]:>8g} "
+                f"{name:<{width}} {'circle' if order == 0 else order:>8} {library_obj.interest[i]:>8g} "
                 f"{cutoffs[i]:7.3g} {gap}  {text}{mark}"
             )
     if plot_path:

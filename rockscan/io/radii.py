@@ -14,7 +14,8 @@ from rockscan.core.errors import first_line as _first_line
 
 def read_radii(path: str | os.PathLike[str]) -> NDArray[np.float64]:
     """Read an outline given as radii: a text file of numbers (any whitespace or
-    commas), or a ``.npy`` array, sampled at equal angles from theta = 0.
+    commas; ``#`` starts a comment), or a ``.npy`` array, sampled at equal
+    angles from theta = 0.
 
     Parameters
     ----------
@@ -36,7 +37,8 @@ def read_radii(path: str | os.PathLike[str]) -> NDArray[np.float64]:
         else:
             # utf-8-sig: a byte-order mark (Excel's "CSV UTF-8") is no part of the first number.
             text = path.read_text(encoding="utf-8-sig")
-            rows = [line.replace(",", " ").split() for line in text.splitlines()]
+            # A '#' starts a comment, as numpy.loadtxt reads it (savetxt's header, notes).
+            rows = [line.split("#", 1)[0].replace(",", " ").split() for line in text.splitlines()]
             rows = [row for row in rows if row]
             if len(rows) > 1 and len({len(row) for row in rows}) == 1 and len(rows[0]) > 1:
                 # A table (rows of one length, more than one column) would be read
