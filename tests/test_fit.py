@@ -348,6 +348,17 @@ def test_family_varies_by_factors_and_names_each_variant():
         assert (v.params.m1, v.params.n2, v.params.n3) == (1.0, 0.75, 0.75)
 
 
+def test_family_leaves_out_variants_with_the_base_outline():
+    # A circle's n1 changes nothing, nor does a factor within rounding of 1: the
+    # spec written held the base twice, and library build refused it.
+    circle = ShapeSpec("circle", SuperformulaParams(m1=0, m2=0, n1=1, n2=1, n3=1))
+    assert family(circle, [("n1", (0.9, 1.1))]) == []
+    variants = family(BASE, [("n1", (1.0000001, 1.001, 1.1))])
+    assert [v.name for v in variants] == ["egg-n1-1-001", "egg-n1-1-1"]
+    kept = family(circle, [("m", (4.0,)), ("n1", (0.9,))], absolute=True)
+    assert [v.name for v in kept] == ["circle-m-4-n1-0-9"]
+
+
 def test_family_refuses_a_name_it_cannot_vary():
     # A KeyError escaped for a name parse_vary never makes (the API takes any pairs).
     with pytest.raises(SpecError, match="cannot vary 'zz'"):

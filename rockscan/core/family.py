@@ -8,6 +8,7 @@ import math
 from collections.abc import Sequence
 
 import numpy as np
+from numpy.typing import NDArray
 
 from rockscan.core._threads import one_blas_thread
 from rockscan.core.errors import ParameterError, SpecError
@@ -123,7 +124,8 @@ def family(
     variants : list of ShapeSpec
         Named ``BASE-NAME-VALUE[-NAME-VALUE...]`` (sanitised, e.g.
         ``egg-n1-0-9`` for a factor 0.9), with the base's interest. A variant
-        equal to the base is left out.
+        of the base's outline (up to a turn and a scale: a circle's n1, a
+        factor within rounding of 1) is left out.
 
     Raises
     ------
@@ -158,6 +160,7 @@ def family(
     if len(combos) > MAX_VARIANTS:
         raise SpecError(f"that family would hold over {MAX_VARIANTS} variants; vary fewer values")
     base_values = base.params.as_dict()
+    base_radii = shape_radii(base.params, 360)
     variants: list[ShapeSpec] = []
     seen: dict[str, tuple[tuple[str, float], ...]] = {}
     for combo in combos:
@@ -184,11 +187,29 @@ def family(
         seen[variant_name] = combo
         try:
             params = SuperformulaParams(**values)
-            shape_radii(params, 360)
+            radii = shape_radii(params, 360)
         except ParameterError as exc:
             raise SpecError(f"variant {variant_name!r}: {exc}; narrow the --vary range") from None
+        if _same_outline(radii, base_radii):
+            # A circle's n1, or a factor within rounding of 1: the base itself,
+            # which library build would refuse beside it.
+            continue
         variants.append(ShapeSpec(variant_name, params, interest=base.interest))
     return variants
+
+
+def _same_outline(radii: NDArray[np.float64], base: NDArray[np.float64]) -> bool:
+    """Whether two outlines are one, up to a turn (log radii within ``SAME_OUTLINE``)."""
+    a, b = np.log(radii), np.log(base)
+    a, b = a - a.mean(), b - b.mean()
+    # Every turn at once: the circular cross-correlation gives |a - roll(b)|**2.
+    cross = np.fft.irfft(np.fft.rfft(a) * np.conj(np.fft.rfft(b)), n=a.size)
+    return bool(float(a @ a + b @ b - 2.0 * cross.max()) < SAME_OUTLINE**2 * a.size)
+
+
+#: RMS difference of centred log radii under which a variant is its base: a
+#: factor of 1 + 1e-7 on the egg's n1 differs by 8e-9, one of 1.001 by 8e-5.
+SAME_OUTLINE = 1e-6
 
 
 def _value_label(value: float) -> str:
