@@ -156,6 +156,19 @@ def test_all_good_exits_zero_and_table_matches_json(rendered):
     assert row[2:5] == [record["match"], record["nearest"], f"{record['mscore']:.3f}"]
 
 
+def test_an_error_names_the_photo_as_it_was_given(tmp_path, monkeypatch):
+    # Path() dropped the "./": the error named "missing.png" beside "path": "./missing.png",
+    # and standard error named the photo twice.
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "bad.png").write_bytes(b"not a photo")
+    given = ["./missing.png", ".//bad.png", f"{tmp_path}/../{tmp_path.name}/missing.png"]
+    result = run("--json", *given)
+    assert result.exit_code == 1
+    for record, path in zip(lines(result.stdout), given, strict=True):
+        assert record["path"] == path and record["error"].startswith(f"{path}: ")
+    assert result.stderr.splitlines() == [f"rockscan: error: {r['error']}" for r in lines(result.stdout)]
+
+
 def test_json_errors_also_go_to_stderr(rendered, tmp_path):
     missing = str(tmp_path / "missing.png")
     result = run("--json", rendered["teardrop"][0], missing)

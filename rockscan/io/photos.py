@@ -156,7 +156,20 @@ def read_image(path: str | os.PathLike[str], *, max_side: int | None = None) -> 
     if isinstance(path, str) and not path.strip():
         # Path("") is the current folder: "an empty path" says what went wrong.
         raise ImageReadError("an empty path; give a photo's path")
-    path = Path(path)
+    given = os.fspath(path)
+    try:
+        return _read_image(Path(path), max_side)
+    except ImageReadError as exc:
+        # Path drops a leading "./" and doubled slashes: the message names the
+        # photo as the user wrote it, as the "path" beside it does.
+        named = str(Path(path))
+        message = str(exc)
+        if given != named and message.startswith(named + ":"):
+            raise ImageReadError(given + message[len(named) :]) from None
+        raise
+
+
+def _read_image(path: Path, max_side: int | None) -> ImageData:
     _check_file(path)
     if max_side is not None and (
         isinstance(max_side, bool) or not isinstance(max_side, (int, np.integer)) or max_side < 1
