@@ -226,3 +226,23 @@ def test_show_keeps_its_columns_in_line_for_a_long_name(runner, tmp_path):
     ):
         assert row[:width].rstrip() == name and row[width] == " "
         assert row[width + 1 : width + 9].strip() == order
+
+
+def test_match_says_what_decided_against_the_cutoffs_library_show_prints(runner, tmp_path):
+    # The cutoff show printed could not be compared with anything match or classify
+    # printed: rocks under it were rejected, on a distance no output gave.
+    shown = {
+        row["name"]: row
+        for row in map(json.loads, runner.invoke(main, ["library", "show", "--json"]).output.splitlines())
+    }
+    result = runner.invoke(main, ["match", "--params", "7,7,2,7,7", "--json"])
+    record = json.loads(result.output)
+    assert record["decided_by"] == "calibrated-cutoff" and record["interesting"] is False
+    assert record["sensor_distance"] > record["cutoff_distance"]
+    row = shown[record["nearest"]]
+    low, high = sorted((row["clean_cutoff"], row["cutoff"]))
+    assert low <= record["cutoff_distance"] <= high
+    text = runner.invoke(main, ["match", "--params", "7,7,2,7,7"]).output
+    assert (
+        f"(sensor distance {record['sensor_distance']:.3g} > cutoff {record['cutoff_distance']:.3g})" in text
+    )

@@ -92,15 +92,35 @@ def match_cmd(
     if rotate:
         radii = rotate_radii(radii, rotate)
     result = match_radii(radii, lib, match_config)
-    record = {"source": params_text or radii_path, **result.to_dict()}
+    # What decided, beside the paper's distance: the library's cutoffs are on the
+    # sensor distance (library show prints them), which the distance is not.
+    record = {
+        "source": params_text or radii_path,
+        **result.to_dict(),
+        "sensor_distance": result.sensor_distance,
+        "cutoff_distance": result.cutoff_distance,
+        "decided_by": result.decided_by,
+    }
     if as_json:
         click.echo(json.dumps(record))
     else:
         verdict = "interesting" if result.interesting else "not interesting"
         click.echo(
             f"nearest {result.nearest}  MScore {result.mscore:.3f}  distance {result.distance:.4g}  "
-            f"angle {result.angle_deg:.1f} deg  -> {verdict}"
+            f"angle {result.angle_deg:.1f} deg  -> {verdict} ({_decision(result)})"
         )
+
+
+def _decision(result: Any) -> str:
+    """The test that decided a match, e.g. ``sensor distance 0.351 > cutoff 0.0901``."""
+    if result.decided_by == "calibrated-cutoff":
+        test = "<=" if result.sensor_distance <= result.cutoff_distance else ">"
+        return f"sensor distance {result.sensor_distance:.3g} {test} cutoff {result.cutoff_distance:.3g}"
+    if result.decided_by == "distance-cutoff":
+        return (
+            f"{'within' if result.interesting else 'beyond'} --distance-cutoff {result.cutoff_distance:.3g}"
+        )
+    return f"decided by --{result.decided_by}"
 
 
 # ---------------------------------------------------------------- classify

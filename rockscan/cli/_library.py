@@ -175,6 +175,8 @@ def library_show(lib: str, plot_path: str | None, overwrite: bool, as_json: bool
     library_obj = _load_library(lib)
     face = library_obj.face_config
     cutoffs = library_obj.cutoffs
+    clean = library_obj.calibration_in_force.clean_cutoffs
+    assert clean is not None
     calibration = library_obj.calibration
     spacing = calibration.spacing if calibration is not None else np.full(len(library_obj), np.inf)
     crowded = calibration.crowded if calibration is not None else np.zeros(len(library_obj), bool)
@@ -189,6 +191,7 @@ def library_show(lib: str, plot_path: str | None, overwrite: bool, as_json: bool
                         "interest": float(library_obj.interest[i]),
                         "params": params.as_dict() if params is not None else None,
                         "cutoff": float(cutoffs[i]),
+                        "clean_cutoff": float(clean[i]),
                         "spacing": float(spacing[i]) if np.isfinite(spacing[i]) else None,
                         "crowded": bool(crowded[i]),
                         "tolerance": library_obj.tolerance,
@@ -200,12 +203,14 @@ def library_show(lib: str, plot_path: str | None, overwrite: bool, as_json: bool
         click.echo(
             f"{label}: {len(library_obj)} shapes, {library_obj.basis.n_components} eigenfaces; "
             f"face {face.kind} on a {face.grid} grid {'x'.join(map(str, face.face_shape))}, "
-            f"sigma {face.sigma:g}; cutoffs for {100 * library_obj.tolerance:g}% outline noise"
+            f"sigma {face.sigma:g}; cutoffs on the sensor distance, for a clean outline and one of "
+            f"{100 * library_obj.tolerance:g}% outline noise (in between, in proportion to the noise; "
+            "'rockscan match' shows the one applied)"
         )
         # As wide as the longest name: a longer one pushed its row's columns out of line.
         width = max(22, *(len(name) for name in library_obj.names))
         click.echo(
-            f"{'name':<{width}} {'symmetry':>8} {'interest':>8} {'cutoff':>7} {'spacing':>7}  "
+            f"{'name':<{width}} {'symmetry':>8} {'interest':>8} {'clean':>7} {'cutoff':>7} {'spacing':>7}  "
             "parameters (m1 m2 n1 n2 n3 a b)"
         )
         for i, name in enumerate(library_obj.names):
@@ -216,7 +221,7 @@ def library_show(lib: str, plot_path: str | None, overwrite: bool, as_json: bool
             mark = " (crowded)" if crowded[i] else ""
             click.echo(
                 f"{name:<{width}} {'circle' if order == 0 else order:>8} {library_obj.interest[i]:>8g} "
-                f"{cutoffs[i]:7.3g} {gap}  {text}{mark}"
+                f"{clean[i]:7.3g} {cutoffs[i]:7.3g} {gap}  {text}{mark}"
             )
     if plot_path:
         from rockscan.draw.plot import plot_library
