@@ -219,6 +219,21 @@ def test_a_file_system_that_refuses_writes_is_one_line(tmp_path, monkeypatch):
     assert isinstance(result.exception, SystemExit) and "Traceback" not in result.stderr
 
 
+def test_a_rock_drawn_smaller_than_asked_is_said(tmp_path):
+    # A star at 60% of the frame was drawn at 26%, without a word (its truth file had it).
+    out = tmp_path / "big"
+    result = render("-o", str(out), "--shape", "five-armed-star", "--area", "0.6", "--size", "120x160")
+    assert result.exit_code == 0, result.output
+    truth = json.loads((out / "0000-five-armed-star.json").read_text())
+    assert truth["area_fraction"] < 0.5
+    assert (
+        f"1 of the rocks did not fit the frame at 60% of it and were drawn smaller "
+        f"(0000-five-armed-star at {100 * truth['area_fraction']:.3g}%)" in result.stderr
+    )
+    fits = render("-o", str(tmp_path / "fits"), "--shape", "circle", "--area", "0.3", "--size", "120x160")
+    assert fits.exit_code == 0 and "warning" not in fits.stderr
+
+
 def test_off_a_terminal_a_long_render_logs_its_progress(tmp_path):
     result = render("-o", str(tmp_path / "a"), "-n", "20", "--size", "32x32", "--shape", "circle")
     assert result.exit_code == 0, result.output

@@ -199,12 +199,27 @@ def render_cmd(
     total = count if count is not None else len(shapes)
     stems = [numbered_stem([name for name, _ in named], i, rocks) for i in range(total)]
     _prepare_folder(out_dir, overwrite, [name for stem in stems for name in (stem + suffix, stem + ".json")])
+    shrunk: dict[str, float] = {}
     for i in _progress(range(total), total, unit="photo", verb="rendered"):
         stem, photo = render_numbered(named, config, seed=seed, index=i, rocks=rocks)
+        drawn = float(photo.truth.get("area_fraction", config.area_fraction))
+        if rocks == 1 and drawn < 0.95 * config.area_fraction:
+            # A long rock at a large share does not fit the frame: the renderer shrinks it.
+            shrunk[stem] = drawn
         write_photo(photo, os.path.join(out_dir, stem + suffix))
         truth = {"photo": stem + suffix, "seed": seed, "index": i, **photo.truth}
         text = json.dumps(truth, indent=1)
         write_bytes_atomic(os.path.join(out_dir, stem + ".json"), text.encode("utf-8"), what="the truth")
+    if shrunk:
+        stem, drawn = min(shrunk.items(), key=lambda item: item[1])
+        log.warning(
+            "%d of the rocks did not fit the frame at %g%% of it and were drawn smaller (%s at %.3g%%); "
+            "each truth file gives its area_fraction",
+            len(shrunk),
+            100 * config.area_fraction,
+            stem,
+            100 * drawn,
+        )
     log.info("wrote %d photos with truth (seed %d) to %s", total, seed, out_dir)
 
 
