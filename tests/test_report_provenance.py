@@ -224,6 +224,11 @@ def test_resume_with_another_observed_library_is_refused(photos, tmp_path):
     assert _files(report) == before and not (tmp_path / "sen.npz").exists()
     again = CliRunner().invoke(main, [*args, "--observed", str(tmp_path / "seen.npz"), "--resume"])
     assert again.exit_code == 0, again.output
+    # Left out on resume: the refusal names the file whole (it read {"file": "/t...33875}).
+    left_out = CliRunner().invoke(main, [*args, "--resume"])
+    assert left_out.exit_code == 2
+    assert f'options.novelty.file "{tmp_path / "seen.npz"}" (report) vs null (now)' in left_out.stderr
+    assert _files(report) == before
 
 
 def test_a_resume_says_which_rows_no_longer_fit_the_folder(photos, tmp_path):

@@ -28,7 +28,7 @@ from hypothesis import strategies as st
 from PIL import Image
 
 from rockscan.cli import main
-from rockscan.core.errors import ParameterError
+from rockscan.core.errors import ParameterError, WriteError
 from rockscan.core.render import RenderConfig, render_photo
 from rockscan.core.superformula import SuperformulaParams
 from rockscan.io import default_spec_path, load_library, read_spec
@@ -171,6 +171,16 @@ def test_a_folder_that_cannot_be_listed_becomes_an_error_row(tmp_path, default_l
     summary = triage_folder(tmp_path / "photos", tmp_path / "r.csv", default_lib, TriageConfig(workers=1))
     assert (summary.n_rows, summary.n_errors) == (2, 1)
     assert _rows(tmp_path / "r.csv")[-1]["path"] == locked
+    # Listed again: its photos get rows, and its own error row goes (it stayed for
+    # good, with exit 1 and a warning that it was "no longer under" the folder).
+    monkeypatch.setattr(os, "scandir", real)
+    again = triage_folder(
+        tmp_path / "photos", tmp_path / "r.csv", default_lib, TriageConfig(workers=1, resume=True)
+    )
+    assert (again.n_rows, again.n_errors, again.n_gone, again.failed) == (3, 0, 0, False)
+    rows = _rows(tmp_path / "r.csv")
+    assert sorted(r["path"] for r in rows) == sorted(find_photos(tmp_path / "photos").photos)
+    assert all(r["error"] is None for r in rows)
 
 
 @pytest.mark.parametrize(
@@ -370,6 +380,38 @@ def test_a_photo_that_fails_again_keeps_one_error_row(tmp_path, default_lib):
     rows = _rows(report)
     assert [Path(r["path"]).name for r in rows if r["error"] is not None] == ["broken.png"]
     assert len(rows) == 3
+
+
+@pytest.mark.parametrize("suffix", [".csv", ".jsonl"])
+def test_a_photo_whose_rows_the_disk_cut_short_leaves_none_and_is_done_again(tmp_path, suffix):
+    # A full disk took part of a photo's write: its first rocks whole, the next cut
+    # short. The resume dropped the cut row and counted the photo done, 3 of its 8
+    # rocks kept for good.
+    path = tmp_path / f"r{suffix}"
+    row = {**dict.fromkeys(ROW_KEYS), "interest": 1.0, "mscore": 1.0}
+    with ReportJournal(path) as journal:
+        journal.append({**row, "path": "a.png"})
+        size = path.stat().st_size
+
+        class Full:
+            def __init__(self, fh):
+                self.fh = fh
+
+            def write(self, data):
+                self.fh.write(data[: len(data) // 2])
+                raise OSError(28, "No space left on device")
+
+            def __getattr__(self, name):
+                return getattr(self.fh, name)
+
+        journal._fh = Full(journal._fh)
+        with pytest.raises(WriteError, match="No space left on device"):
+            journal.append([{**row, "path": "b.png", "index": i} for i in range(8)])
+        journal._fh = journal._fh.fh
+    assert path.stat().st_size == size
+    resumed = ReportJournal(path, resume=True)
+    resumed.close()
+    assert resumed.done == {photo_key("a.png")}
 
 
 def test_a_foreign_file_is_not_taken_for_a_report(tmp_path):
@@ -895,3 +937,36 @@ def test_a_library_that_cannot_be_loaded_is_a_usage_error_and_writes_no_report(t
     )
     assert result.exit_code == 2 and "library file not found" in result.stderr
     assert sorted(p.name for p in tmp_path.iterdir()) == ["photos"]
+
+
+def test_a_novel_rock_whose_row_was_not_written_is_novel_again_on_resume(tmp_path, default_lib, monkeypatch):
+    # Its shape went into the observed library before its row was written; the
+    # disk full, the resume compared the rock with its own shape: not novel,
+    # interest 0, ranked last instead of first.
+    root = tmp_path / "photos"
+    _render_folder(root, 3)
+    lobed = SuperformulaParams(m1=4.0, m2=4.0, n1=0.6, n2=1.0, n3=1.0)
+    _render_folder(root / "odd", 1, shapes=[("four-lobed", lobed)])
+    triage_folder(
+        root, tmp_path / "ref.jsonl", default_lib, TriageConfig(workers=1), observed=tmp_path / "ref.npz"
+    )
+    real = ReportJournal.append
+
+    def full_disk(self, rows):
+        rows = [rows] if isinstance(rows, dict) else list(rows)
+        if any("four-lobed" in r["path"] for r in rows):
+            raise WriteError("r.jsonl: cannot write report (No space left on device)")
+        return real(self, rows)
+
+    report, observed = tmp_path / "r.jsonl", tmp_path / "seen.npz"
+    monkeypatch.setattr(ReportJournal, "append", full_disk)
+    with pytest.raises(WriteError):
+        triage_folder(root, report, default_lib, TriageConfig(workers=1), observed=observed)
+    monkeypatch.setattr(ReportJournal, "append", real)
+    triage_folder(root, report, default_lib, TriageConfig(workers=1, resume=True), observed=observed)
+    reference = {Path(r["path"]).name: r for r in _rows(tmp_path / "ref.jsonl")}
+    resumed = {Path(r["path"]).name: r for r in _rows(report)}
+    rock = "000-four-lobed.png"
+    assert reference[rock]["novel"] is True and reference[rock]["rank"] == 1
+    assert resumed[rock]["novel"] is True and resumed[rock]["rank"] == 1
+    assert resumed[rock]["interest"] == pytest.approx(reference[rock]["interest"])

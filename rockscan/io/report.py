@@ -458,7 +458,10 @@ def _differences(old: Any, new: Any, prefix: str = "") -> list[str]:
         if said is not None:
             rest = _differences({**old, "photos": None}, {**new, "photos": None})
             return [said, *rest]
-    if isinstance(old, dict) and isinstance(new, dict):
+    if (isinstance(old, dict) or old is None) and (isinstance(new, dict) or new is None) and old != new:
+        # A setting given on one side only (an observed library) is named key by
+        # key, so that its paths show whole.
+        old, new = old or {}, new or {}
         out = []
         for key in sorted(set(old) | set(new)):
             out += _differences(old.get(key), new.get(key), f"{prefix}{key}.")
@@ -706,15 +709,24 @@ class ReportJournal:
         ------
         ParameterError
             If the file cannot take it (disk full, file size limit): the rows
-            written before stay readable and ``resume`` continues after them.
+            written before stay readable, none of these rows is left (the file
+            is cut back to where they began), and ``resume`` continues after them.
         """
         rows = [row] if isinstance(row, dict) else list(row)
         data = b"".join(encode_row(r, self._fmt) for r in rows)
+        start = None
         try:
+            start = self._fh.tell()
             written = self._fh.write(data)
             while written < len(data):
                 written += self._fh.write(data[written:])
         except OSError as exc:
+            if start is not None:
+                # A full disk takes part of the write: a photo's first rocks whole
+                # and the next cut short. The resume would drop the cut row and
+                # count the photo done with rocks missing: all its rows go.
+                with contextlib.suppress(OSError):
+                    os.ftruncate(self._fh.fileno(), start)
             raise WriteError(
                 f"{self.path}: cannot write report ({exc.strerror or exc}); the rows before are kept: "
                 "make room and run again with --resume"
@@ -785,9 +797,17 @@ def journal_entries(fh: BinaryIO, fmt: str, source: Path) -> Iterator[tuple[Jour
         yield (rank_key(row), ordinal, offset, len(record)), _rock_hash(row), _photo_hash(row)
 
 
-def scan_journal(journal: Path, fmt: str, spill: contextlib.ExitStack, chunk_rows: int) -> JournalScan:
+def scan_journal(
+    journal: Path,
+    fmt: str,
+    spill: contextlib.ExitStack,
+    chunk_rows: int,
+    *,
+    resolved: frozenset[str] = frozenset(),
+) -> JournalScan:
     """Sort keys of a journal in sorted chunks (spilled to temporary files), and
-    the rows to drop (:func:`latest_rows`)."""
+    the rows to drop (:func:`latest_rows`, and the error rows of the photo keys
+    ``resolved``)."""
     import numpy as np
 
     # 17 bytes a row: the rock's and the photo's identity hashes, and whether
@@ -814,6 +834,8 @@ def scan_journal(journal: Path, fmt: str, spill: contextlib.ExitStack, chunk_row
 
     errors = np.frombuffer(flags, dtype=np.bool_) if flags else np.zeros(0, dtype=bool)
     keep = latest_rows(column(photos), errors, column(rocks))
+    if resolved:
+        keep &= ~(errors & np.isin(column(photos), [_hash(key) for key in resolved]))
     drop = frozenset(np.flatnonzero(~keep).tolist())
     return JournalScan(provenance, int(keep.sum()), int(errors[keep].sum()), drop, chunks)
 

@@ -63,11 +63,13 @@ def finalize_report(
     n_top: int = 10,
     n_errors: int = 20,
     chunk_rows: int | None = None,
+    resolved: frozenset[str] = frozenset(),
 ) -> RankedReport:
     """Rank a report's journal and rewrite the report atomically.
 
-    Every rock appears once (the first row of a photo's rock wins), ranked
-    rocks first (rank 1, 2, ...), then error rows with no rank.
+    Every rock appears once (the first row of a photo's rock wins; an error row
+    gives way to a later row of its photo), ranked rocks first (rank 1, 2, ...),
+    then error rows with no rank.
 
     Parameters
     ----------
@@ -82,6 +84,10 @@ def finalize_report(
         How many best rows and error rows to return.
     chunk_rows : int, optional
         Sort keys held in memory at once (default :data:`CHUNK_ROWS`).
+    resolved : frozenset of str
+        :func:`rockscan.io.report.photo_key` of error rows to leave out: a
+        folder that could not be listed then and can now (its photos have
+        rows of their own).
 
     Returns
     -------
@@ -101,7 +107,7 @@ def finalize_report(
     n_err = 0
     try:
         with contextlib.ExitStack() as stack:
-            scan = scan_journal(journal, line_fmt, stack, chunk_rows or CHUNK_ROWS)
+            scan = scan_journal(journal, line_fmt, stack, chunk_rows or CHUNK_ROWS, resolved=resolved)
             out = _Output(journal, stack)
             out.write(journal_header(scan.provenance, line_fmt))
             page = _open_page(fmt, report, scan, stack, title=title, limit=limit)

@@ -70,6 +70,9 @@ from rockscan.run.provenance import novelty_weight, report_provenance
 from rockscan.run.report import finalize_report, refresh_html
 
 if TYPE_CHECKING:
+    import numpy as np
+    from numpy.typing import NDArray
+
     from rockscan.core.library import Library
 
 __all__ = ["TriageConfig", "TriageSummary", "interest_score", "triage_folder", "triage_row"]
@@ -397,7 +400,12 @@ def _triage_locked(
     # Before the journal is opened: a resume drops a row cut short, and so writes to it.
     written = _modified(journal_path(report))
     run = _TriageRun(report, folder, library, config, observed, progress, on_error)
-    stale = _stale_rows(listing, run.journal.done, run.journal.failed, written)
+    # A folder that could not be listed then and can now: its photos are listed,
+    # and its error row goes from the report.
+    unlisted = {photo_key(p) for p, _ in listing.problems}
+    resolved = frozenset(k for k in run.journal.failed if k not in unlisted and os.path.isdir(k))
+    run.resolved = resolved
+    stale = _stale_rows(listing, run.journal.done - resolved, run.journal.failed, written)
     # A photo that failed before is tried again: it may have been half copied,
     # unreadable to this user, or met a fault since mended; its latest rows count.
     settled = run.journal.done - run.journal.failed
@@ -554,6 +562,10 @@ class _TriageRun:
         # A new observed library is written even if no rock turns out novel.
         self.observed_dirty |= self.observed_path is not None and not self.observed_path.exists()
         self.names = set(self.novelty.library.names) if self.novelty is not None else set()
+        # Error rows of folders that can be listed now (_triage_locked).
+        self.resolved: frozenset[str] = frozenset()
+        # Novel shapes of the photo being committed, kept once its rows are written.
+        self._unwritten: list[tuple[str, NDArray[np.float64]]] = []
 
     @property
     def pending_path(self) -> Path | None:
@@ -620,18 +632,31 @@ class _TriageRun:
                 stem = Path(row["path"]).stem + (f"-{row['index']}" if row.get("index") else "")
                 name = observed_name(stem, self.names)
                 self.names.add(name)
+                # The next rock of the photo is assessed against this one; the shape
+                # is kept (in the pending file) once the photo's rows are written.
                 self.novelty = self.novelty.with_shape(name, outcome.radii)
-                append_pending(self.pending_path, name, outcome.radii)
-                self.observed_dirty = True
+                self._unwritten.append((name, outcome.radii))
                 self.n_novel += 1
         if self.html:
             row[THUMBNAIL_KEY] = outcome.thumbnail
         return row
 
     def commit(self, outcome: PhotoOutcome) -> None:
+        before = (self.novelty, set(self.names), self.n_novel)
+        self._unwritten = []
         rows = [self.row_of(rock) for rock in outcome.rocks()]
-        # All rows of a photo in one write: a crash leaves all of them or none.
-        self.journal.append(rows)
+        try:
+            # All rows of a photo in one write: a crash leaves all of them or none.
+            self.journal.append(rows)
+        except RockscanError:
+            # Its rows lost (a full disk), the photo is done again on resume: its
+            # novel shapes must not be in the observed library by then, or it
+            # would be compared with itself and found not novel.
+            self.novelty, self.names, self.n_novel = before
+            raise
+        for name, radii in self._unwritten:
+            append_pending(self.pending_path, name, radii)
+            self.observed_dirty = True
         self.done += 1
         self.n_interesting += sum(bool(row.get("interesting")) for row in rows)
         if self.on_error is not None and rows[0].get("error") is not None:
@@ -653,7 +678,9 @@ class _TriageRun:
         self.journal.close()
         try:
             self.save_observed()
-            ranked = finalize_report(self.report, title=self.title, limit=self.config.html_limit)
+            ranked = finalize_report(
+                self.report, title=self.title, limit=self.config.html_limit, resolved=self.resolved
+            )
         except RockscanError:
             if failure is None:
                 raise
