@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import base64
 import io
+import re
 from pathlib import Path
 
 import cv2
@@ -180,3 +181,25 @@ def test_a_grains_sizes_show_their_digits_on_its_card():
     }
     page = render_html([row], n_rows=1, n_errors=0)
     assert "0.0432 mm across, 0.00147 mm&sup2;" in page
+
+
+def test_the_page_of_a_running_resume_shows_a_replaced_photos_new_rocks_only(tmp_path):
+    from rockscan.io.report import ROW_KEYS, ReportJournal
+    from rockscan.run.report import refresh_html
+
+    report = tmp_path / "r.html"
+    row = {
+        **dict.fromkeys(ROW_KEYS),
+        **{"mscore": 0.5, "match": "egg", "nearest": "egg", "angle_deg": 10.0},
+        **{"interesting": False, "segmentation_score": 0.9},
+    }
+    with ReportJournal(report) as journal:
+        journal.append([{**row, "path": "a.png", "index": i, "interest": 0.1 * i} for i in range(3)])
+        journal.append({**row, "path": "b.png", "index": 0, "interest": 0.5})
+        # a.png replaced under its name, classified again while the run goes on: one rock now.
+        journal.append({**row, "path": "a.png", "index": 0, "interest": 0.9, "nearest": "lens"})
+    refresh_html(report)
+    page = report.read_text()
+    cards = re.findall(r'<figure class="card" [^>]*data-interest="([^"]*)"[^>]*data-path="([^"]*)"', page)
+    assert cards == [("0.9", "a.png"), ("0.5", "b.png")]
+    assert "2 ranked, 0 errors" in page

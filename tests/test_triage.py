@@ -275,10 +275,10 @@ def test_finalize_ranks_once_per_photo_and_is_atomic(tmp_path):
         journal.append({**dict.fromkeys(ROW_KEYS), "path": "c", "error": "c: file is empty"})
     ranked = finalize_report(path)
     rows = _rows(path)
-    # The first row of a photo wins; errors come last without a rank.
+    # A photo's latest attempt wins (a resume tried it again); errors come last without a rank.
     assert [(r["rank"], r["path"], r["interest"]) for r in rows] == [
-        (1, "b", 0.9),
-        (2, "a", 0.2),
+        (1, "a", 0.95),
+        (2, "b", 0.9),
         (None, "c", None),
     ]
     assert (ranked.n_rows, ranked.n_errors) == (3, 1)
@@ -300,32 +300,30 @@ def test_a_row_cut_short_by_a_crash_is_dropped_on_resume(tmp_path):
 
 
 @given(
-    photos=st.lists(st.tuples(st.integers(0, 3), st.integers(0, 4)), min_size=1, max_size=6),
+    attempts=st.lists(st.lists(st.integers(0, 4), min_size=1, max_size=4), min_size=1, max_size=6),
     order=st.randoms(use_true_random=False),
 )
-def test_the_ranking_keeps_what_replaces_an_error_and_each_rock_once(photos, order):
-    # Each photo: some failed attempts (an error row each), then its rocks if
-    # it was read at last. The rows of an earlier run lie in any order (ranked,
-    # errors last), but a photo's rows of each attempt follow its errors.
-    rows = []
-    for photo, (failures, n_rocks) in enumerate(photos):
-        rows += [(photo, True, 0)] * failures + [(photo, False, index) for index in range(n_rocks)]
-    slots = list(range(len(rows)))
-    order.shuffle(slots)
-    placed = [None] * len(rows)
-    for photo in range(len(photos)):
-        mine = [i for i, r in enumerate(rows) if r[0] == photo]
-        for row, slot in zip(mine, sorted(slots[i] for i in mine), strict=True):
-            placed[slot] = rows[row]
-    expected = [
-        i
-        for i, (photo, error, _) in enumerate(placed)
-        if not error or (photos[photo][1] == 0 and i == max(j for j, r in enumerate(placed) if r[0] == photo))
-    ]
+def test_the_ranking_keeps_each_photos_latest_attempt_and_each_rock_once(attempts, order):
+    # Per photo, its attempts: 0 an error row, else that many rocks. The first
+    # attempt lies in an earlier run's ranked rows, in any order; each later one
+    # (a resume tried the photo again: it had failed, or changed) was appended
+    # whole, its rocks by index, after the attempts before it.
+    ranked, appended = [], []
+    for photo, tries in enumerate(attempts):
+        blocks = [[(photo, t, i) for i in range(max(n, 1))] for t, n in enumerate(tries)]
+        ranked += blocks[0]
+        appended.append(blocks[1:])
+    order.shuffle(ranked)
+    rows = list(ranked)
+    while any(appended):
+        photo = order.choice([k for k, left in enumerate(appended) if left])
+        rows += appended[photo].pop(0)
+    latest = {photo: len(tries) - 1 for photo, tries in enumerate(attempts)}
+    expected = [i for i, (photo, t, _) in enumerate(rows) if t == latest[photo]]
     keep = latest_rows(
-        np.array([r[0] for r in placed], np.int64),
-        np.array([r[1] for r in placed], bool),
-        np.array([r[0] * 100 + r[2] for r in placed], np.int64),
+        np.array([r[0] for r in rows], np.int64),
+        np.array([r[2] == 0 for r in rows], bool),
+        np.array([r[0] * 100 + r[2] for r in rows], np.int64),
     )
     assert np.flatnonzero(keep).tolist() == expected
 
@@ -970,3 +968,25 @@ def test_a_novel_rock_whose_row_was_not_written_is_novel_again_on_resume(tmp_pat
     assert reference[rock]["novel"] is True and reference[rock]["rank"] == 1
     assert resumed[rock]["novel"] is True and resumed[rock]["rank"] == 1
     assert resumed[rock]["interest"] == pytest.approx(reference[rock]["interest"])
+
+
+@pytest.mark.parametrize("suffix", [".csv", ".html"])
+def test_a_photo_replaced_under_its_name_is_classified_again(tmp_path, default_lib, suffix):
+    # Its row kept the answer for the photo it replaced (with a warning).
+    root = tmp_path / "photos"
+    specs = [(s.name, s.params) for s in read_spec(default_spec_path())]
+    first, second = _render_folder(root, 2, shapes=[specs[0], specs[5]])
+    report = tmp_path / f"r{suffix}"
+    triage_folder(root, report, default_lib, TriageConfig(workers=1))
+    journal = report if suffix == ".csv" else report.with_name(report.name + ".jsonl")
+    # All in the past, in order: the photos, the report, the replacement.
+    written = journal.stat().st_mtime
+    for path, age in ((second, 20), (journal, 10)):
+        os.utime(path, (written - age, written - age))
+    (replacement,) = _render_folder(tmp_path / "other", 1, shapes=[specs[5]])
+    first.write_bytes(replacement.read_bytes())
+    os.utime(first, (written - 5, written - 5))
+    again = triage_folder(root, report, default_lib, TriageConfig(workers=1, resume=True))
+    assert (again.n_changed, again.n_processed, again.n_rows) == (1, 1, 2)
+    rows = {Path(r["path"]).name: r for r in _rows(journal)}
+    assert len(rows) == 2 and rows[first.name]["nearest"] == specs[5][0]

@@ -790,11 +790,13 @@ class JournalScan:
     chunks: list[Iterable[JournalEntry]]
 
 
-def journal_entries(fh: BinaryIO, fmt: str, source: Path) -> Iterator[tuple[JournalEntry, int, int]]:
-    """Each row's sort entry and its rock's and its photo's identity hashes."""
+def journal_entries(fh: BinaryIO, fmt: str, source: Path) -> Iterator[tuple[JournalEntry, int, int, bool]]:
+    """Each row's sort entry, its rock's and its photo's identity hashes, and
+    whether it begins an attempt at its photo (rock index 0)."""
     for ordinal, (offset, record) in enumerate(_records(fh, fmt)):
         row = _decode(record, fmt, source, ordinal + 1)
-        yield (rank_key(row), ordinal, offset, len(record)), _rock_hash(row), _photo_hash(row)
+        entry = (rank_key(row), ordinal, offset, len(record))
+        yield entry, _rock_hash(row), _photo_hash(row), not row.get("index")
 
 
 def scan_journal(
@@ -810,18 +812,19 @@ def scan_journal(
     ``resolved``)."""
     import numpy as np
 
-    # 17 bytes a row: the rock's and the photo's identity hashes, and whether
-    # the row is an error.
+    # 18 bytes a row: the rock's and the photo's identity hashes, whether the
+    # row is an error, and whether it begins an attempt at its photo.
     rocks, photos = array.array("q"), array.array("q")
-    flags = bytearray()
+    flags, firsts = bytearray(), bytearray()
     chunk: list[JournalEntry] = []
     chunks: list[Iterable[JournalEntry]] = []
     with open_journal(journal) as fh:
         provenance = read_header(fh, fmt, journal)
-        for entry, rock, photo in journal_entries(fh, fmt, journal):
+        for entry, rock, photo, first in journal_entries(fh, fmt, journal):
             rocks.append(rock)
             photos.append(photo)
             flags.append(entry[0][0])
+            firsts.append(first)
             chunk.append(entry)
             if len(chunk) >= chunk_rows:
                 chunks.append(_spill(sorted(chunk), journal, spill))
@@ -833,7 +836,8 @@ def scan_journal(
         return np.frombuffer(values, dtype=np.int64) if values else np.zeros(0, np.int64)
 
     errors = np.frombuffer(flags, dtype=np.bool_) if flags else np.zeros(0, dtype=bool)
-    keep = latest_rows(column(photos), errors, column(rocks))
+    starts = np.frombuffer(firsts, dtype=np.bool_) if firsts else np.zeros(0, dtype=bool)
+    keep = latest_rows(column(photos), starts, column(rocks))
     if resolved:
         keep &= ~(errors & np.isin(column(photos), [_hash(key) for key in resolved]))
     drop = frozenset(np.flatnonzero(~keep).tolist())
@@ -841,20 +845,24 @@ def scan_journal(
 
 
 def latest_rows(
-    photos: NDArray[np.int64], errors: NDArray[np.bool_], rocks: NDArray[np.int64]
+    photos: NDArray[np.int64], starts: NDArray[np.bool_], rocks: NDArray[np.int64]
 ) -> NDArray[np.bool_]:
-    """Which rows of a journal a report keeps: no error row a later row of its
-    photo replaces, and each rock once (its first row).
+    """Which rows of a journal a report keeps: each photo's latest attempt, and
+    each rock once (its first row).
 
-    A resume tries a photo that failed again (``ReportJournal.failed``): its
-    new rows, an error or its rocks however many, come after the error row
-    they replace, wherever the ranking of an earlier run put that row.
+    A photo's rows are written together, its rocks by increasing index, so each
+    attempt at a photo begins with a row of index 0 (an error row too). A
+    resume tries a photo again when its row is an error
+    (``ReportJournal.failed``) or the photo changed since: its new rows, an error
+    or its rocks however many, come after the old ones, wherever the ranking of
+    an earlier run put those, and replace them. A photo with one attempt keeps
+    all its rows, in whatever order the ranking left them.
 
     Parameters
     ----------
-    photos, errors, rocks : (n,) ndarray
-        Each row's photo identity hash, whether it is an error row, and its
-        rock's identity hash, in journal order.
+    photos, starts, rocks : (n,) ndarray
+        Each row's photo identity hash, whether it has index 0, and its rock's
+        identity hash, in journal order.
 
     Returns
     -------
@@ -866,22 +874,23 @@ def latest_rows(
     keep = np.zeros(n, dtype=bool)
     if n == 0:
         return keep
-    # Few photos fail: the rows of those that did are found by a search in
-    # their sorted hashes, and only they are grouped (memory stays a few
-    # bytes a row beyond the rock hashes' own sort).
-    failed = np.unique(photos[errors])
+    # Few photos are tried again: the rows of those that were are found by a
+    # search in their sorted hashes, and only they are grouped.
+    begun, attempts = np.unique(photos[starts], return_counts=True)
+    again = begun[attempts > 1]
+    del begun, attempts
     replaced = None
-    if failed.size:
-        at = np.minimum(np.searchsorted(failed, photos), failed.size - 1)
-        rows = np.flatnonzero(failed[at] == photos)
+    if again.size:
+        at = np.minimum(np.searchsorted(again, photos), again.size - 1)
+        rows = np.flatnonzero(again[at] == photos)
         del at
         _, inverse = np.unique(photos[rows], return_inverse=True)
-        last = np.full(failed.size, -1, dtype=np.int64)
-        np.maximum.at(last, inverse.ravel(), rows)
-        later = errors[rows] & (rows < last[inverse.ravel()])
-        if later.any():
-            replaced = rows[later]
-    if replaced is None:
+        inverse = inverse.ravel()
+        first = starts[rows]
+        last = np.full(again.size, -1, dtype=np.int64)
+        np.maximum.at(last, inverse[first], rows[first])
+        replaced = rows[rows < last[inverse]]
+    if replaced is None or replaced.size == 0:
         keep[np.unique(rocks, return_index=True)[1]] = True
         return keep
     kept = np.ones(n, dtype=bool)
