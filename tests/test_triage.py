@@ -968,25 +968,3 @@ def test_a_novel_rock_whose_row_was_not_written_is_novel_again_on_resume(tmp_pat
     assert reference[rock]["novel"] is True and reference[rock]["rank"] == 1
     assert resumed[rock]["novel"] is True and resumed[rock]["rank"] == 1
     assert resumed[rock]["interest"] == pytest.approx(reference[rock]["interest"])
-
-
-@pytest.mark.parametrize("suffix", [".csv", ".html"])
-def test_a_photo_replaced_under_its_name_is_classified_again(tmp_path, default_lib, suffix):
-    # Its row kept the answer for the photo it replaced (with a warning).
-    root = tmp_path / "photos"
-    specs = [(s.name, s.params) for s in read_spec(default_spec_path())]
-    first, second = _render_folder(root, 2, shapes=[specs[0], specs[5]])
-    report = tmp_path / f"r{suffix}"
-    triage_folder(root, report, default_lib, TriageConfig(workers=1))
-    journal = report if suffix == ".csv" else report.with_name(report.name + ".jsonl")
-    # All in the past, in order: the photos, the report, the replacement.
-    written = journal.stat().st_mtime
-    for path, age in ((second, 20), (journal, 10)):
-        os.utime(path, (written - age, written - age))
-    (replacement,) = _render_folder(tmp_path / "other", 1, shapes=[specs[5]])
-    first.write_bytes(replacement.read_bytes())
-    os.utime(first, (written - 5, written - 5))
-    again = triage_folder(root, report, default_lib, TriageConfig(workers=1, resume=True))
-    assert (again.n_changed, again.n_processed, again.n_rows) == (1, 1, 2)
-    rows = {Path(r["path"]).name: r for r in _rows(journal)}
-    assert len(rows) == 2 and rows[first.name]["nearest"] == specs[5][0]

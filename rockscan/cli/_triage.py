@@ -333,14 +333,11 @@ def _skipped(summary: Any) -> str:
 
 
 def _retried(summary: Any) -> str:
-    """The summary's note of the photos a resume classified again, e.g. `` (3 of them
-    failed before, 1 changed since)``, or "" when there were none."""
-    parts = []
-    if summary.n_retried:
-        parts.append(f"{summary.n_retried} of them failed before")
-    if summary.n_changed:
-        parts.append(f"{summary.n_changed} changed since")
-    return f" ({', '.join(parts)})" if parts else ""
+    """The summary's note of the photos with an error row that a resume tried again, e.g.
+    `` (3 of them failed before)``, or "" when there were none."""
+    if not summary.n_retried:
+        return ""
+    return f" ({summary.n_retried} of them failed before)"
 
 
 def _print_summary(summary: Any, folder: str, *, to_stderr: bool) -> None:
@@ -363,6 +360,19 @@ def _print_summary(summary: Any, folder: str, *, to_stderr: bool) -> None:
             "is" if one else "are",
             folder,
             "its row is" if one else "their rows are",
+        )
+    if summary.n_changed:
+        one = summary.n_changed == 1
+        log.warning(
+            "%d photo%s in the report %s changed after it was last written; %s of the photo%s as %s "
+            "(--overwrite classifies %s afresh)",
+            summary.n_changed,
+            "" if one else "s",
+            "was" if one else "were",
+            "its row is" if one else "their rows are",
+            "" if one else "s",
+            "it was" if one else "they were",
+            "it" if one else "them",
         )
     if not summary.n_found:
         from rockscan.io.photos import IMAGE_SUFFIXES

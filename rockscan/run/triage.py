@@ -211,7 +211,7 @@ class TriageSummary:
         Photos a resumed report holds that are no longer under the folder (their rows are kept).
     n_changed : int
         Photos a resumed report holds that were changed after the report was last
-        written: classified again, their new rows replace the old.
+        written: their rows are of the photos as they were.
     n_retried : int
         Of them, in the report with an error row from an earlier run, and
         tried again in this one (their new rows replace the error rows).
@@ -405,11 +405,10 @@ def _triage_locked(
     unlisted = {photo_key(p) for p, _ in listing.problems}
     resolved = frozenset(k for k in run.journal.failed if k not in unlisted and os.path.isdir(k))
     run.resolved = resolved
-    n_gone, changed = _stale_rows(listing, run.journal.done - resolved, run.journal.failed, written)
+    stale = _stale_rows(listing, run.journal.done - resolved, run.journal.failed, written)
     # A photo that failed before is tried again: it may have been half copied,
-    # unreadable to this user, or met a fault since mended. So is one replaced
-    # under its name since the report was written. Their latest rows count.
-    settled = run.journal.done - run.journal.failed - changed
+    # unreadable to this user, or met a fault since mended; its latest rows count.
+    settled = run.journal.done - run.journal.failed
     todo = [p for p in listing.photos if photo_key(p) not in settled]
     problems = [(p, msg) for p, msg in listing.problems if photo_key(p) not in settled]
     n_retried = sum(photo_key(p) in run.journal.failed for p in (*todo, *(p for p, _ in problems)))
@@ -456,8 +455,8 @@ def _triage_locked(
         elapsed_s=time.perf_counter() - started,
         n_skipped=listing.n_skipped,
         skipped_endings=listing.skipped_endings,
-        n_gone=n_gone,
-        n_changed=len(changed),
+        n_gone=stale[0],
+        n_changed=stale[1],
     )
 
 
@@ -471,21 +470,20 @@ def _modified(path: Path) -> float | None:
 
 def _stale_rows(
     listing: PhotoListing, done: set[str], failed: set[str], written: float | None
-) -> tuple[int, set[str]]:
+) -> tuple[int, int]:
     """Of the photos a resumed report holds, how many are no longer under the
-    folder, and which were changed after the report was last written (at
-    ``written``: a photo replaced under its name, classified again; one that
-    ``failed`` is tried again anyway); 0 and none for a new report."""
+    folder, and how many were changed after the report was last written (at
+    ``written``: a photo replaced under its name keeps its old row; one that
+    ``failed`` is tried again); both 0 for a new report."""
     if not done or written is None:
-        return 0, set()
+        return 0, 0
     found = {photo_key(p) for p in listing.photos} | {photo_key(p) for p, _ in listing.problems}
-    changed = set()
+    changed = 0
     for path in listing.photos:
         key = photo_key(path)
         if key in done and key not in failed:
             with contextlib.suppress(OSError):
-                if os.stat(path).st_mtime > written:
-                    changed.add(key)
+                changed += os.stat(path).st_mtime > written
     return len(done - found), changed
 
 
