@@ -378,6 +378,9 @@ def test_a_photo_that_fails_again_keeps_one_error_row(tmp_path, default_lib):
     rows = _rows(report)
     assert [Path(r["path"]).name for r in rows if r["error"] is not None] == ["broken.png"]
     assert len(rows) == 3
+    result = CliRunner().invoke(main, ["triage", str(root), "-o", str(report), "-j", "1", "--resume"])
+    # One error, not "1 errors".
+    assert "2 ranked, 1 error;" in result.stdout
 
 
 @pytest.mark.parametrize("suffix", [".csv", ".jsonl"])

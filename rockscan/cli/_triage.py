@@ -380,7 +380,8 @@ def _print_summary(summary: Any, folder: str, *, to_stderr: bool) -> None:
         log.warning("no photos under %s: photos end in %s", folder, ", ".join(IMAGE_SUFFIXES))
     where = "" if to_stderr else f"{summary.report}: "
     line = (
-        f"{where}{summary.n_rows - summary.n_errors} ranked, {summary.n_errors} errors; "
+        f"{where}{summary.n_rows - summary.n_errors} ranked, {summary.n_errors} "
+        f"error{'' if summary.n_errors == 1 else 's'}; "
         f"{summary.n_interesting} interesting in this run"
     )
     if summary.n_observed is not None:
