@@ -256,7 +256,7 @@ def test_a_resume_says_which_rows_no_longer_fit_the_folder(photos, tmp_path):
 
 
 def test_a_killed_runs_temporary_report_is_removed_by_the_next_run(photos, tmp_path, default_lib):
-    # kill -9 while the report was ranked left ".r.csv.tmpPID" (25 MB in the probe)
+    # kill -9 while the report was ranked left ".r.csv.tmpPID" (25 MB for a large report)
     # beside it for good.
     dead = subprocess.run(
         [sys.executable, "-c", "import os; print(os.getpid())"], capture_output=True, text=True
