@@ -810,38 +810,58 @@ def scan_journal(
     """Sort keys of a journal in sorted chunks (spilled to temporary files), and
     the rows to drop (:func:`latest_rows`, and the error rows of the photo keys
     ``resolved``)."""
-    import numpy as np
-
-    # 18 bytes a row: the rock's and the photo's identity hashes, whether the
-    # row is an error, and whether it begins an attempt at its photo.
-    rocks, photos = array.array("q"), array.array("q")
-    flags, firsts = bytearray(), bytearray()
+    kept = KeptRows()
     chunk: list[JournalEntry] = []
     chunks: list[Iterable[JournalEntry]] = []
     with open_journal(journal) as fh:
         provenance = read_header(fh, fmt, journal)
         for entry, rock, photo, first in journal_entries(fh, fmt, journal):
-            rocks.append(rock)
-            photos.append(photo)
-            flags.append(entry[0][0])
-            firsts.append(first)
+            kept.add(entry, rock, photo, first)
             chunk.append(entry)
             if len(chunk) >= chunk_rows:
                 chunks.append(_spill(sorted(chunk), journal, spill))
                 chunk = []
     chunk.sort()
     chunks.append(chunk)
+    return kept.scan(provenance, chunks, resolved)
 
-    def column(values: array.array) -> NDArray[np.int64]:
-        return np.frombuffer(values, dtype=np.int64) if values else np.zeros(0, np.int64)
 
-    errors = np.frombuffer(flags, dtype=np.bool_) if flags else np.zeros(0, dtype=bool)
-    starts = np.frombuffer(firsts, dtype=np.bool_) if firsts else np.zeros(0, dtype=bool)
-    keep = latest_rows(column(photos), starts, column(rocks))
-    if resolved:
-        keep &= ~(errors & np.isin(column(photos), [_hash(key) for key in resolved]))
-    drop = frozenset(np.flatnonzero(~keep).tolist())
-    return JournalScan(provenance, int(keep.sum()), int(errors[keep].sum()), drop, chunks)
+class KeptRows:
+    """What the ranking needs of each row to know which rows a report keeps
+    (:func:`latest_rows`), gathered as a journal is read: 18 bytes a row, the
+    rock's and the photo's identity hashes, whether the row is an error, and
+    whether it begins an attempt at its photo."""
+
+    def __init__(self) -> None:
+        self.rocks, self.photos = array.array("q"), array.array("q")
+        self.errors, self.starts = bytearray(), bytearray()
+
+    def add(self, entry: JournalEntry, rock: int, photo: int, first: bool) -> None:
+        """One row, as :func:`journal_entries` gives it."""
+        self.rocks.append(rock)
+        self.photos.append(photo)
+        self.errors.append(entry[0][0])
+        self.starts.append(first)
+
+    def scan(
+        self,
+        provenance: dict[str, Any] | None,
+        chunks: list[Iterable[JournalEntry]],
+        resolved: frozenset[str] = frozenset(),
+    ) -> JournalScan:
+        """The journal's scan: rows kept and errors among them, the rows to drop
+        (also the error rows of the photo keys ``resolved``), and ``chunks``."""
+        import numpy as np
+
+        def column(values: array.array | bytearray, dtype: type) -> NDArray[Any]:
+            return np.frombuffer(values, dtype=dtype) if values else np.zeros(0, dtype)
+
+        photos, errors = column(self.photos, np.int64), column(self.errors, np.bool_)
+        keep = latest_rows(photos, column(self.starts, np.bool_), column(self.rocks, np.int64))
+        if resolved:
+            keep &= ~(errors & np.isin(photos, [_hash(key) for key in resolved]))
+        drop = frozenset(np.flatnonzero(~keep).tolist())
+        return JournalScan(provenance, int(keep.sum()), int(errors[keep].sum()), drop, chunks)
 
 
 def latest_rows(

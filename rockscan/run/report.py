@@ -8,7 +8,6 @@ goes on (:func:`refresh_html`).
 
 from __future__ import annotations
 
-import array
 import contextlib
 import heapq
 import os
@@ -24,12 +23,12 @@ from rockscan.io.report import (
     THUMBNAIL_KEY,
     JournalEntry,
     JournalScan,
+    KeptRows,
     RankedReport,
     encode_row,
     journal_entries,
     journal_header,
     journal_path,
-    latest_rows,
     open_journal,
     ranked_rows,
     read_header,
@@ -188,23 +187,17 @@ def refresh_html(path: str | os.PathLike[str], *, title: str = "rockscan triage"
     limit : int
         See :func:`finalize_report`.
     """
-    import numpy as np
-
     report = Path(path)
     journal = journal_path(report)
     best: list[_Negated] = []
     bad: list[_Negated] = []
     # What the ranking keeps (rockscan.io.report.latest_rows): a photo tried again
     # shows its latest attempt only, while the run goes on too.
-    rocks, photos = array.array("q"), array.array("q")
-    flags, firsts = bytearray(), bytearray()
+    kept = KeptRows()
     with open_journal(journal) as fh:
         provenance = read_header(fh, "jsonl", journal)
         for entry, rock, photo, first in journal_entries(fh, "jsonl", journal):
-            rocks.append(rock)
-            photos.append(photo)
-            flags.append(entry[0][0])
-            firsts.append(first)
+            kept.add(entry, rock, photo, first)
             heap = bad if entry[0][0] else best
             # A max-heap of the best `limit` keeps memory to the page's rows.
             item = _Negated(entry)
@@ -213,14 +206,7 @@ def refresh_html(path: str | os.PathLike[str], *, title: str = "rockscan triage"
             elif heap[0] < item:
                 heapq.heapreplace(heap, item)
     entries = sorted(e.entry for e in best) + sorted(e.entry for e in bad)
-    keep = latest_rows(
-        np.frombuffer(photos, dtype=np.int64) if photos else np.zeros(0, np.int64),
-        np.frombuffer(firsts, dtype=np.bool_) if firsts else np.zeros(0, bool),
-        np.frombuffer(rocks, dtype=np.int64) if rocks else np.zeros(0, np.int64),
-    )
-    errors = np.frombuffer(flags, dtype=np.bool_) if flags else np.zeros(0, bool)
-    drop = frozenset(np.flatnonzero(~keep).tolist())
-    scan = JournalScan(provenance, int(keep.sum()), int(errors[keep].sum()), drop, [entries])
+    scan = kept.scan(provenance, [entries])
     try:
         with contextlib.ExitStack() as stack:
             page = _open_page("html", report, scan, stack, title=title, limit=limit, in_progress=True)

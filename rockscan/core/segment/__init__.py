@@ -324,8 +324,11 @@ def _scene_behind_alpha(
     segmentation of the scene's colour, its transparent pixels painted as its
     ground; so too for a photo whose transparent pixels are only specks; None
     for any other photo (a cut-out's alpha is its outline)."""
-    arr = _check_pixels(pixels)
-    scene = painted(arr)
+    # Only an RGBA photo has an alpha to read: any other skips the checks that
+    # _candidate_pool makes of every photo (a float or 16-bit photo's full passes).
+    if np.ndim(pixels) != 3 or np.shape(pixels)[2] != 4:
+        return None
+    scene = painted(_check_pixels(pixels))
     if scene is None:
         return None
     colour, edge_zone = scene
